@@ -23,6 +23,7 @@ pub mod enlarge;
 pub mod frequency;
 pub mod input;
 pub mod output;
+pub mod testscene;
 
 pub use analysis::{analyse, decide, AlphaSource, Analysis, Decision, Decisions, ObjectFrequency};
 pub use enlarge::{enlarge, EnlargeOptions, Enlarged};

@@ -76,6 +76,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         frequency: FrequencyOptions {
             energy_share: args.energy_share,
             min_pixels: args.min_pixels,
+            ..FrequencyOptions::default()
         },
         enlarge: EnlargeOptions {
             filter: match args.filter {

@@ -8,15 +8,17 @@
 //!
 //! **Cameras.** The composite is a 2-D montage, not a photograph of one 3-D
 //! scene: the sources were shot from different poses. Each object therefore
-//! keeps the camera of its own source ([`SegFrame::object_cameras`]), with the
+//! keeps the camera of its own source ([`SegFrame::object_views`]), with the
 //! principal point moved right by its offset on the canvas. That camera is
 //! exact for every pixel of that object, which is all segmentation needs:
 //! frequencies are measured per object, and an enlarged crop of object k
 //! gets `cropped` intrinsics of source k's camera — the same crop taken from
-//! the source image. The frame-level camera is the first object's.
+//! the source image, and its enlarged view has the source's size (W × H),
+//! not the canvas'. The frame-level camera is the first object's.
 
 use super::enlarge::resize_view;
-use super::input::{SegCapture, SegFrame, SegmentError};
+use super::frequency::PixelBox;
+use super::input::{ObjectView, SegCapture, SegFrame, SegmentError};
 use crate::camera::Camera;
 use image::{imageops::FilterType, GrayImage, RgbaImage};
 use rayon::prelude::*;
@@ -77,10 +79,18 @@ pub fn compose_side_by_side(sources: &[SegCapture]) -> Result<SegCapture, Segmen
                         }
                     }
                     for o in 0..s.objects.len() {
-                        let mut cam: Camera = f.camera_of(o);
-                        cam.intrinsics.cx += ox as f32;
-                        cam.intrinsics.width = canvas_w;
-                        cameras.push(cam);
+                        let mut camera: Camera = f.camera_of(o);
+                        camera.intrinsics.cx += ox as f32;
+                        camera.intrinsics.width = canvas_w;
+                        let r = f.region_of(o);
+                        cameras.push(ObjectView {
+                            camera,
+                            region: PixelBox {
+                                x0: r.x0 + ox,
+                                x1: r.x1 + ox,
+                                ..r
+                            },
+                        });
                     }
                     label_base += s.objects.len() as u8;
                     let stem = f.file_path.rsplit('/').next().unwrap_or(&f.file_path);
@@ -95,8 +105,8 @@ pub fn compose_side_by_side(sources: &[SegCapture]) -> Result<SegCapture, Segmen
                     file_path: format!("{dir}/{}", names.join("+")),
                     image,
                     mask,
-                    camera: cameras[0],
-                    object_cameras: cameras,
+                    camera: cameras[0].camera,
+                    object_views: cameras,
                 }
             })
             .collect()
@@ -147,16 +157,33 @@ pub fn resize_capture(cap: &SegCapture, width: u32, height: u32) -> Result<SegCa
             .map(|f| {
                 let (image, mask) =
                     resize_view(&f.image, &f.mask, width, height, FilterType::Lanczos3);
+                let (sx, sy) = (
+                    width as f64 / f.image.width() as f64,
+                    height as f64 / f.image.height() as f64,
+                );
                 let rc = |c: &Camera| Camera {
                     intrinsics: c.intrinsics.resized(width, height),
                     c2w: c.c2w,
+                };
+                let rr = |r: PixelBox| PixelBox {
+                    x0: (r.x0 as f64 * sx).round() as u32,
+                    y0: (r.y0 as f64 * sy).round() as u32,
+                    x1: ((r.x1 as f64 * sx).round() as u32).min(width),
+                    y1: ((r.y1 as f64 * sy).round() as u32).min(height),
                 };
                 SegFrame {
                     file_path: f.file_path.clone(),
                     image,
                     mask,
                     camera: rc(&f.camera),
-                    object_cameras: f.object_cameras.iter().map(rc).collect(),
+                    object_views: f
+                        .object_views
+                        .iter()
+                        .map(|v| ObjectView {
+                            camera: rc(&v.camera),
+                            region: rr(v.region),
+                        })
+                        .collect(),
                 }
             })
             .collect()

@@ -50,10 +50,17 @@ pub struct Enlarged {
     pub zoom: (f64, f64),
 }
 
-/// The crop box for an object with tight box `bbox` in a `width × height`
-/// image: `bbox` plus `margin`, widened (about its centre) to the image's
-/// aspect ratio, shifted to lie inside the image.
-pub fn crop_box(bbox: PixelBox, width: u32, height: u32, margin: f32) -> PixelBox {
+/// The crop box for an object with tight box `bbox` (inside `region`):
+/// `bbox` plus `margin`, widened about its centre to the region's aspect
+/// ratio, shifted to lie inside the region.
+pub fn crop_box(bbox: PixelBox, region: PixelBox, margin: f32) -> PixelBox {
+    let (width, height) = (region.width(), region.height());
+    let bbox = PixelBox {
+        x0: bbox.x0.clamp(region.x0, region.x1) - region.x0,
+        y0: bbox.y0.clamp(region.y0, region.y1) - region.y0,
+        x1: bbox.x1.clamp(region.x0, region.x1) - region.x0,
+        y1: bbox.y1.clamp(region.y0, region.y1) - region.y0,
+    };
     let m = (margin.max(0.0) * bbox.width().max(bbox.height()) as f32).round() as u32;
     let (bw, bh) = (
         (bbox.width() + 2 * m).min(width),
@@ -73,8 +80,8 @@ pub fn crop_box(bbox: PixelBox, width: u32, height: u32, margin: f32) -> PixelBo
         let start = (centre2 - len as i64).div_euclid(2);
         start.clamp(0, (limit - len) as i64) as u32
     };
-    let x0 = place(bbox.x0, bbox.x1, bw, width);
-    let y0 = place(bbox.y0, bbox.y1, bh, height);
+    let x0 = region.x0 + place(bbox.x0, bbox.x1, bw, width);
+    let y0 = region.y0 + place(bbox.y0, bbox.y1, bh, height);
     PixelBox {
         x0,
         y0,
@@ -83,8 +90,8 @@ pub fn crop_box(bbox: PixelBox, width: u32, height: u32, margin: f32) -> PixelBo
     }
 }
 
-/// The enlarged view of the object labelled `label`, seen through `camera`;
-/// `None` when the object is absent from the view.
+/// The enlarged view of the object labelled `label`, seen through `camera`,
+/// at the image's size; `None` when the object is absent from the view.
 pub fn enlarge(
     image: &RgbaImage,
     mask: &GrayImage,
@@ -92,12 +99,38 @@ pub fn enlarge(
     camera: &Camera,
     opts: &EnlargeOptions,
 ) -> Option<Enlarged> {
-    let (w, h) = image.dimensions();
-    if mask.dimensions() != (w, h) {
+    let region = PixelBox {
+        x0: 0,
+        y0: 0,
+        x1: image.width(),
+        y1: image.height(),
+    };
+    enlarge_within(image, mask, label, camera, region, opts)
+}
+
+/// As [`enlarge`], for an object that lives in the sub-rectangle `region`
+/// of the image (a source's place in a composite): the crop stays inside
+/// `region` and the output has the region's size. `camera` is the object's
+/// camera for the whole image.
+pub fn enlarge_within(
+    image: &RgbaImage,
+    mask: &GrayImage,
+    label: u8,
+    camera: &Camera,
+    region: PixelBox,
+    opts: &EnlargeOptions,
+) -> Option<Enlarged> {
+    if mask.dimensions() != image.dimensions()
+        || region.x1 > image.width()
+        || region.y1 > image.height()
+        || region.x0 >= region.x1
+        || region.y0 >= region.y1
+    {
         return None;
     }
+    let (w, h) = (region.width(), region.height());
     let (bbox, _) = mask_bbox(mask, label)?;
-    let crop = crop_box(bbox, w, h, opts.margin);
+    let crop = crop_box(bbox, region, opts.margin);
     // Premultiplied crop with everything but the object made transparent.
     let src = Rgba32FImage::from_fn(crop.width(), crop.height(), |x, y| {
         let (sx, sy) = (crop.x0 + x, crop.y0 + y);

@@ -2,35 +2,35 @@
 //!
 //! **Measure** (see `docs/segmentation.md`): the radius of the disc, centred
 //! on zero frequency, that holds [`FrequencyOptions::energy_share`] (90 %) of
-//! the spectral energy of the object's image, in **cycles per object
-//! diameter**.
+//! the spectral energy of the object's mean-removed, windowed luminance, in
+//! **cycles per object diameter**.
 //!
-//! 1. The object is cut out with its instance mask (other objects and the
-//!    background removed) and composited over white, as a NeRF of it is
-//!    trained: luminance `c = a·Y + (1 − a)`, `Y` the Rec. 709 luma of the
-//!    sRGB-coded colour, `a` = alpha where the mask names the object, else 0.
-//! 2. The signal is `s = c − 1 = a·(Y − 1)`: zero wherever the object is
-//!    absent, so the analysis box needs no window (its borders are zero) and
-//!    both kinds of detail count — texture (variation of `Y`) and shape
-//!    (the silhouette against the white background: gear teeth, lattices).
-//! 3. `s` is zero-padded to a square of side `L` (the object's bounding box
+//! 1. Luminance `Y` = Rec. 709 luma of the sRGB-coded colour, over the
+//!    pixels whose instance-mask label is the object's (other objects and the
+//!    background are excluded).
+//! 2. Window `w` = the pixel's alpha × a smoothstep taper from 0 at the
+//!    silhouette to 1 at depth `taper·D` inside it (chamfer distance), so
+//!    cutting the object out adds no spurious edge; the band scales with the
+//!    object, so it looks the same at any image size.
+//! 3. Signal `s = w·(Y − Ȳ)`, `Ȳ` the `w`-weighted mean: the object's
+//!    texture and shading, without its average brightness.
+//! 4. `s` is zero-padded to a square of side `L` (the object's bounding box
 //!    plus a margin, rounded up to a 2ᵃ3ᵇ5ᶜ size) and transformed with a 2-D
-//!    FFT (`rustfft`). Frequency bin (u, v) lies at radius
-//!    `√(u² + v²) / L` cycles per pixel.
-//! 4. Energies `|S(u, v)|²` (zero frequency excluded: it is the object's mean
-//!    darkness, not detail) are accumulated by radius; the radius where the
-//!    cumulative share reaches 90 % (linearly interpolated inside a
-//!    histogram bin) is the frequency in cycles per pixel.
-//! 5. It is multiplied by the object's **diameter** `D = 2·√2·r_g` pixels
+//!    FFT (`rustfft`). Bin (u, v) lies at radius `√(u² + v²) / L` cycles per
+//!    pixel. The expected power of 8-bit rounding noise is subtracted from
+//!    every bin.
+//! 5. Energies `|S(u, v)|²` (zero frequency excluded) are accumulated by
+//!    radius; the radius where the cumulative share reaches 90 % (linearly
+//!    interpolated in quarter-bin steps) is the frequency in cycles per pixel.
+//! 6. It is multiplied by the object's **diameter** `D = 2·√2·r_g` pixels
 //!    (`r_g` the alpha-weighted radius of gyration of the object's pixels:
-//!    the diameter of the uniform disc with the same `r_g`), giving cycles
-//!    per object diameter.
+//!    the diameter of the uniform disc with the same `r_g`).
 //!
 //! Why cycles per object diameter: resizing a capture (400 vs 800 pixels)
 //! or moving the camera scales cycles-per-pixel and the diameter in pixels by
 //! inverse factors, so the product — and hence the ranking of objects and a
 //! user's threshold α — does not depend on the image size or the camera
-//! distance; it only changes where detail falls below the pixel grid.
+//! distance; it changes only where detail falls below the pixel grid.
 //! `r_g` rather than the bounding box because it does not change when the
 //! object turns in the image plane.
 
@@ -46,6 +46,9 @@ pub struct FrequencyOptions {
     /// Views where the object covers fewer pixels than this give no value
     /// (too small to say anything about its detail).
     pub min_pixels: u32,
+    /// Width of the window's taper inside the silhouette, as a fraction of
+    /// the object's diameter.
+    pub taper: f64,
 }
 
 impl Default for FrequencyOptions {
@@ -53,6 +56,7 @@ impl Default for FrequencyOptions {
         Self {
             energy_share: 0.9,
             min_pixels: 64,
+            taper: 0.03,
         }
     }
 }
@@ -189,24 +193,63 @@ pub fn detail_frequency(
     }
     let diameter_px = 2.0 * (2.0 * sr2 / sa).sqrt();
 
+    // Window: the object's coverage, tapered to zero over a band of
+    // `taper · D` pixels inside its silhouette (smoothstep of the distance
+    // to the nearest non-object pixel), so the cut at the silhouette adds no
+    // spurious high frequencies, and the band scales with the object (the
+    // same at any image size).
+    let (bw, bh) = (bbox.width() as usize, bbox.height() as usize);
+    let inside: Vec<bool> = (0..bh)
+        .flat_map(|y| (0..bw).map(move |x| (x, y)))
+        .map(|(x, y)| mraw[(bbox.y0 as usize + y) * w as usize + bbox.x0 as usize + x] == label)
+        .collect();
+    let dist = chamfer_inside(&inside, bw, bh);
+    let band = (opts.taper * diameter_px).max(1.0) as f32;
+    let mut weight = vec![0.0f32; bw * bh];
+    let mut lum = vec![0.0f32; bw * bh];
+    let (mut sw, mut swy) = (0.0f64, 0.0f64);
+    for y in 0..bh {
+        for x in 0..bw {
+            let j = y * bw + x;
+            if !inside[j] {
+                continue;
+            }
+            let i = (bbox.y0 as usize + y) * w as usize + bbox.x0 as usize + x;
+            let p = &raw[4 * i..4 * i + 4];
+            let t = (dist[j] / band).min(1.0);
+            let wt = p[3] as f32 / 255.0 * t * t * (3.0 - 2.0 * t);
+            weight[j] = wt;
+            lum[j] = luma(p);
+            sw += wt as f64;
+            swy += (wt * lum[j]) as f64;
+        }
+    }
+    if sw <= 0.0 {
+        return None;
+    }
+    let mean = (swy / sw) as f32;
+
     // Square analysis box: the bounding box plus a margin of zeros so the
     // transform's periodic wrap-around does not join opposite edges.
-    let side = bbox.width().max(bbox.height()) as usize;
+    let side = bw.max(bh);
     let l = fft_size(side + 2 * (side / 8).max(4));
-    let (ox, oy) = ((l - bbox.width() as usize) / 2, (l - bbox.height() as usize) / 2);
+    let (ox, oy) = ((l - bw) / 2, (l - bh) / 2);
     let mut buf = vec![Complex::new(0.0f32, 0.0); l * l];
-    for y in bbox.y0..bbox.y1 {
-        let row = (oy + (y - bbox.y0) as usize) * l + ox;
-        for x in bbox.x0..bbox.x1 {
-            let i = (y * w + x) as usize;
-            if mraw[i] == label {
-                let p = &raw[4 * i..4 * i + 4];
-                let a = p[3] as f32 / 255.0;
-                buf[row + (x - bbox.x0) as usize].re = a * (luma(p) - 1.0);
-            }
+    for y in 0..bh {
+        let row = (oy + y) * l + ox;
+        for x in 0..bw {
+            let j = y * bw + x;
+            buf[row + x].re = weight[j] * (lum[j] - mean);
         }
     }
     fft_2d_power(&mut buf, l);
+
+    // 8-bit quantisation adds white noise of variance σ² = Σcᵢ²/(12·255²)
+    // to the luma; its expected power in every bin is σ²·Σw². Removing it
+    // keeps a flat, featureless object from reporting its rounding noise
+    // as detail.
+    let sigma2 = (0.2126f64.powi(2) + 0.7152f64.powi(2) + 0.0722f64.powi(2)) / (12.0 * 255.0 * 255.0);
+    let floor = sigma2 * weight.iter().map(|&w| (w as f64) * (w as f64)).sum::<f64>();
 
     // Energy histogram over radius, bins of 1/4 of the frequency spacing.
     const SUB: f64 = 4.0;
@@ -221,14 +264,14 @@ pub fn detail_frequency(
             if fu == 0 && fv == 0 {
                 continue;
             }
-            let e = buf[v * l + u].re as f64;
+            let e = (buf[v * l + u].re as f64 - floor).max(0.0);
             let r = ((fu * fu + fv * fv) as f64).sqrt();
             hist[(r * SUB) as usize] += e;
             total += e;
         }
     }
     if total <= 0.0 || !total.is_finite() {
-        // A uniformly white object: no detail at all.
+        // A uniform object: no detail above the rounding noise.
         return Some(DetailFrequency {
             cycles_per_diameter: 0.0,
             cycles_per_pixel: 0.0,
@@ -278,4 +321,51 @@ fn transpose_square(buf: &mut [Complex<f32>], l: usize) {
             buf.swap(y * l + x, x * l + y);
         }
     }
+}
+
+/// Distance (pixels, chamfer 3-4 approximation of Euclidean) from each
+/// `inside` pixel to the nearest pixel that is not inside (the box's
+/// outside counts as not inside); 0 outside.
+fn chamfer_inside(inside: &[bool], w: usize, h: usize) -> Vec<f32> {
+    const A: f32 = 1.0; // axial step
+    const D: f32 = 1.4; // diagonal step (3-4 chamfer ≈ 1 : 4/3; 1.4 is closer to √2)
+    let big = (w + h) as f32 * 2.0;
+    let mut d: Vec<f32> = inside.iter().map(|&i| if i { big } else { 0.0 }).collect();
+    let at = |d: &Vec<f32>, x: isize, y: isize| -> f32 {
+        if x < 0 || y < 0 || x >= w as isize || y >= h as isize {
+            0.0
+        } else {
+            d[y as usize * w + x as usize]
+        }
+    };
+    for y in 0..h as isize {
+        for x in 0..w as isize {
+            let j = y as usize * w + x as usize;
+            if d[j] == 0.0 {
+                continue;
+            }
+            let v = d[j]
+                .min(at(&d, x - 1, y) + A)
+                .min(at(&d, x, y - 1) + A)
+                .min(at(&d, x - 1, y - 1) + D)
+                .min(at(&d, x + 1, y - 1) + D);
+            d[j] = v;
+        }
+    }
+    for y in (0..h as isize).rev() {
+        for x in (0..w as isize).rev() {
+            let j = y as usize * w + x as usize;
+            if d[j] == 0.0 {
+                continue;
+            }
+            let v = d[j]
+                .min(at(&d, x + 1, y) + A)
+                .min(at(&d, x, y + 1) + A)
+                .min(at(&d, x + 1, y + 1) + D)
+                .min(at(&d, x - 1, y + 1) + D);
+            d[j] = v;
+        }
+    }
+    // A pixel next to the outside is half a pixel from the boundary.
+    d.iter().map(|&v| if v > 0.0 { v - 0.5 } else { 0.0 }).collect()
 }

@@ -4,6 +4,7 @@
 //! [`crate::camera::Camera`]) so the core functions do not depend on how a
 //! capture was read; [`SegCapture::load`] adapts a capture folder.
 
+use super::frequency::PixelBox;
 use crate::camera::{Camera, Transforms};
 use image::{GrayImage, Luma, RgbaImage};
 use std::path::{Path, PathBuf};
@@ -47,20 +48,43 @@ pub struct SegFrame {
     pub mask: GrayImage,
     /// The frame's camera.
     pub camera: Camera,
-    /// Per-object cameras (index = object index), or empty when every object
-    /// is seen through [`SegFrame::camera`]. Only 2-D composites of separate
-    /// captures ([`super::compose`]) need them: each object keeps the camera
-    /// of the capture it came from.
-    pub object_cameras: Vec<Camera>,
+    /// Per-object cameras and regions (index = object index), or empty when
+    /// every object is seen through [`SegFrame::camera`] over the whole
+    /// image. Only 2-D composites of separate captures ([`super::compose`])
+    /// need them: each object keeps the camera of the capture it came from.
+    pub object_views: Vec<ObjectView>,
+}
+
+/// How one object of a composite is seen: its own camera (intrinsics for
+/// the whole composite image) and the part of the image it came from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ObjectView {
+    /// The object's camera.
+    pub camera: Camera,
+    /// The sub-rectangle of the image its source occupies.
+    pub region: PixelBox,
 }
 
 impl SegFrame {
     /// The camera through which object `object` (0-based) is seen.
     pub fn camera_of(&self, object: usize) -> Camera {
-        self.object_cameras
+        self.object_views
             .get(object)
-            .copied()
-            .unwrap_or(self.camera)
+            .map_or(self.camera, |v| v.camera)
+    }
+
+    /// The part of the image object `object` lives in (the whole image
+    /// unless the frame is a composite).
+    pub fn region_of(&self, object: usize) -> PixelBox {
+        self.object_views.get(object).map_or(
+            PixelBox {
+                x0: 0,
+                y0: 0,
+                x1: self.image.width(),
+                y1: self.image.height(),
+            },
+            |v| v.region,
+        )
     }
 }
 
@@ -120,13 +144,22 @@ impl SegCapture {
                     f.mask.dimensions()
                 ));
             }
-            if !f.object_cameras.is_empty() && f.object_cameras.len() != self.objects.len() {
+            if !f.object_views.is_empty() && f.object_views.len() != self.objects.len() {
                 return bad(format!(
-                    "{}: {} object cameras for {} objects",
+                    "{}: {} object views for {} objects",
                     f.file_path,
-                    f.object_cameras.len(),
+                    f.object_views.len(),
                     self.objects.len()
                 ));
+            }
+            for (o, v) in f.object_views.iter().enumerate() {
+                let r = v.region;
+                if r.x0 >= r.x1 || r.y0 >= r.y1 || r.x1 > size.0 || r.y1 > size.1 {
+                    return bad(format!(
+                        "{}: object {o}: region {r:?} is empty or outside the image",
+                        f.file_path
+                    ));
+                }
             }
         }
         Ok(())
@@ -210,7 +243,7 @@ fn read_frames(dir: &Path, t: &Transforms) -> Result<Vec<SegFrame>, SegmentError
                 mask: mask_from_alpha(&image),
                 image,
                 camera,
-                object_cameras: Vec::new(),
+                object_views: Vec::new(),
             })
         })
         .collect()

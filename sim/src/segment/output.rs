@@ -2,11 +2,11 @@
 //! `segmentation.json`.
 
 use super::analysis::{AlphaSource, Analysis, Decision, Decisions};
-use super::enlarge::{enlarge, isolate, EnlargeOptions};
+use super::enlarge::{enlarge_within, isolate, EnlargeOptions};
 use super::frequency::FrequencyOptions;
 use super::input::{SegCapture, SegFrame, SegmentError};
 use crate::camera::{rows_from_mat4, Camera, FrameEntry, Transforms};
-use image::{GrayImage, RgbaImage};
+use image::{imageops, GrayImage, RgbaImage};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -111,7 +111,15 @@ pub fn group_view(
     match group.decision {
         Decision::Dedicated => {
             let o = group.objects[0];
-            Ok(enlarge(&frame.image, &frame.mask, (o + 1) as u8, &frame.camera_of(o), opts).map(
+            Ok(enlarge_within(
+                &frame.image,
+                &frame.mask,
+                (o + 1) as u8,
+                &frame.camera_of(o),
+                frame.region_of(o),
+                opts,
+            )
+            .map(
                 |e| GroupView {
                     file_path: frame.file_path.clone(),
                     image: e.image,
@@ -129,12 +137,15 @@ pub fn group_view(
                     .position(|&o| o + 1 == l as usize)
                     .map_or(0, |i| (i + 1) as u8)
             };
-            let (image, mask) = isolate(&frame.image, &frame.mask, relabel);
-            if mask.as_raw().iter().all(|&v| v == 0) {
-                return Ok(None);
-            }
-            let camera = frame.camera_of(group.objects[0]);
-            if group.objects.iter().any(|&o| frame.camera_of(o) != camera) {
+            let (camera, region) = (
+                frame.camera_of(group.objects[0]),
+                frame.region_of(group.objects[0]),
+            );
+            if group
+                .objects
+                .iter()
+                .any(|&o| frame.camera_of(o) != camera || frame.region_of(o) != region)
+            {
                 return Err(SegmentError::Invalid(format!(
                     "{}: the shared group ({} objects) mixes objects seen through different cameras \
                      (a 2-D composite of separate captures); lower --alpha so each gets a dedicated network",
@@ -142,6 +153,26 @@ pub fn group_view(
                     group.objects.len()
                 )));
             }
+            let (image, mask) = isolate(&frame.image, &frame.mask, relabel);
+            if mask.as_raw().iter().all(|&v| v == 0) {
+                return Ok(None);
+            }
+            // A composite's objects keep only their own part of the canvas.
+            let (x0, y0, w, h) = (region.x0, region.y0, region.width(), region.height());
+            let (image, mask) = if (w, h) == image.dimensions() {
+                (image, mask)
+            } else {
+                (
+                    imageops::crop_imm(&image, x0, y0, w, h).to_image(),
+                    imageops::crop_imm(&mask, x0, y0, w, h).to_image(),
+                )
+            };
+            let camera = Camera {
+                intrinsics: camera
+                    .intrinsics
+                    .cropped(x0 as f32, y0 as f32, w as f32, h as f32, w, h),
+                c2w: camera.c2w,
+            };
             Ok(Some(GroupView {
                 file_path: frame.file_path.clone(),
                 image,
@@ -253,6 +284,10 @@ pub struct GroupRecord {
     pub test_frames: usize,
     /// Mean enlargement factor over the training views (1 for shared).
     pub mean_zoom: f64,
+    /// Width of its views, pixels.
+    pub image_width: u32,
+    /// Height of its views, pixels.
+    pub image_height: u32,
 }
 
 /// Wall-clock seconds of each stage.
@@ -387,7 +422,7 @@ fn summary(
         image_width: w,
         image_height: h,
         measure: MeasureInfo {
-            name: "spectral energy radius of the object over white".into(),
+            name: "spectral energy radius of the mean-removed, windowed masked luminance".into(),
             unit: "cycles per object diameter (2·√2·radius of gyration of its mask)".into(),
             energy_share: opts.frequency.energy_share,
             min_pixels: opts.frequency.min_pixels,
@@ -418,14 +453,14 @@ fn write_group(
         std::fs::remove_dir_all(&tmp_dir).map_err(io(&tmp_dir))?;
     }
     std::fs::create_dir_all(&tmp_dir).map_err(io(&tmp_dir))?;
-    let (w, h) = cap.image_size();
+    let mut size: Option<(u32, u32)> = None;
     let mut counts = [0usize; 2];
     let mut zoom_sum = 0.0;
     for (split, frames) in [("train", &cap.train), ("test", &cap.test)] {
         if frames.is_empty() {
             continue;
         }
-        let written: Vec<Option<(FrameEntry, f64)>> = frames
+        let written: Vec<Option<(FrameEntry, f64, (u32, u32))>> = frames
             .par_iter()
             .map(|f| -> Result<_, SegmentError> {
                 let Some(v) = group_view(f, group, opts)? else {
@@ -451,10 +486,23 @@ fn write_group(
                         extra: Default::default(),
                     },
                     0.5 * (v.zoom.0 + v.zoom.1),
+                    v.image.dimensions(),
                 )))
             })
             .collect::<Result<_, _>>()?;
-        let frames: Vec<(FrameEntry, f64)> = written.into_iter().flatten().collect();
+        let frames: Vec<(FrameEntry, f64, (u32, u32))> = written.into_iter().flatten().collect();
+        for (e, _, wh) in &frames {
+            match size {
+                None => size = Some(*wh),
+                Some(s) if s != *wh => {
+                    return Err(SegmentError::Invalid(format!(
+                        "{}: group {:?}: view {} is {wh:?}, others are {s:?}",
+                        cap.source, group.folder, e.file_path
+                    )))
+                }
+                Some(_) => {}
+            }
+        }
         if frames.is_empty() {
             if split == "train" {
                 return Err(SegmentError::Invalid(format!(
@@ -467,8 +515,9 @@ fn write_group(
         let idx = usize::from(split == "test");
         counts[idx] = frames.len();
         if split == "train" {
-            zoom_sum = frames.iter().map(|(_, z)| z).sum::<f64>();
+            zoom_sum = frames.iter().map(|(_, z, _)| z).sum::<f64>();
         }
+        let (w, h) = size.unwrap_or_default();
         let t = Transforms {
             camera_angle_x: cap.camera_angle_x,
             fl_x: None,
@@ -477,12 +526,15 @@ fn write_group(
             cy: None,
             w: Some(w),
             h: Some(h),
-            frames: frames.into_iter().map(|(e, _)| e).collect(),
+            frames: frames.into_iter().map(|(e, _, _)| e).collect(),
         };
         t.write(&tmp_dir.join(format!("transforms_{split}.json")))?;
     }
     replace_dir(&tmp_dir, &final_dir)?;
+    let (image_width, image_height) = size.unwrap_or_default();
     Ok(GroupRecord {
+        image_width,
+        image_height,
         decision: group.decision,
         folder: group.folder.clone(),
         objects: group
