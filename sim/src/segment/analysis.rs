@@ -168,3 +168,51 @@ pub fn decide(analysis: &Analysis, alpha: Option<f64>) -> Result<Decisions, Segm
         decisions,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn analysis(maxima: &[f64]) -> Analysis {
+        Analysis {
+            objects: maxima
+                .iter()
+                .enumerate()
+                .map(|(i, &m)| ObjectFrequency {
+                    name: format!("o{i}"),
+                    label: (i + 1) as u8,
+                    per_image: Vec::new(),
+                    max_frequency: m,
+                    peak_image: String::new(),
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn default_alpha_is_the_lowest_maximum_and_the_rule_is_strict() {
+        let a = analysis(&[12.0, 5.0, 30.0]);
+        let d = decide(&a, None).unwrap();
+        assert_eq!(d.alpha, 5.0);
+        assert_eq!(d.alpha_source, AlphaSource::LowestMaximum);
+        use Decision::*;
+        assert_eq!(d.decisions, vec![Dedicated, Shared, Dedicated]);
+        assert_eq!(a.ranking(), vec![2, 0, 1]);
+    }
+
+    #[test]
+    fn user_alpha_groups_the_rest_and_bad_alpha_is_an_error() {
+        let a = analysis(&[12.0, 5.0, 30.0]);
+        let d = decide(&a, Some(12.0)).unwrap();
+        use Decision::*;
+        assert_eq!(d.decisions, vec![Shared, Shared, Dedicated]);
+        assert_eq!(d.alpha_source, AlphaSource::User);
+        let d = decide(&a, Some(100.0)).unwrap();
+        assert!(d.decisions.iter().all(|&x| x == Shared));
+        for bad in [-1.0, f64::NAN, f64::INFINITY] {
+            let e = decide(&a, Some(bad)).unwrap_err().to_string();
+            assert!(e.contains("--alpha"), "{e}");
+        }
+        assert!(decide(&analysis(&[]), None).is_err());
+    }
+}

@@ -242,3 +242,128 @@ pub fn resize_view(
     let m = imageops::resize(mask, width, height, FilterType::Nearest);
     (out, m)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    fn full(w: u32, h: u32) -> PixelBox {
+        PixelBox {
+            x0: 0,
+            y0: 0,
+            x1: w,
+            y1: h,
+        }
+    }
+
+    #[test]
+    fn crop_box_keeps_the_aspect_contains_the_object_and_stays_inside() {
+        let cases = [
+            (PixelBox { x0: 10, y0: 20, x1: 30, y1: 100 }, 800, 800),
+            (PixelBox { x0: 0, y0: 0, x1: 800, y1: 5 }, 800, 800),
+            (PixelBox { x0: 790, y0: 700, x1: 800, y1: 800 }, 800, 800),
+            (PixelBox { x0: 100, y0: 100, x1: 200, y1: 150 }, 1600, 800),
+            (PixelBox { x0: 3, y0: 3, x1: 4, y1: 4 }, 640, 480),
+        ];
+        for (b, w, h) in cases {
+            let c = crop_box(b, full(w, h), 0.0);
+            assert!(c.x0 <= b.x0 && c.y0 <= b.y0 && c.x1 >= b.x1 && c.y1 >= b.y1, "{b:?} {c:?}");
+            assert!(c.x1 <= w && c.y1 <= h);
+            let aspect = (c.width() as f64 / c.height() as f64) / (w as f64 / h as f64);
+            assert!((aspect - 1.0).abs() < 2.0 / c.height().min(c.width()) as f64 + 1e-9, "{c:?}");
+        }
+        // A margin grows the box; a region confines it.
+        let b = PixelBox { x0: 300, y0: 300, x1: 400, y1: 400 };
+        let c = crop_box(b, full(800, 800), 0.1);
+        assert_eq!((c.width(), c.height()), (120, 120));
+        let r = PixelBox { x0: 800, y0: 0, x1: 1600, y1: 800 };
+        let b = PixelBox { x0: 810, y0: 10, x1: 900, y1: 30 };
+        let c = crop_box(b, r, 0.0);
+        assert!(c.x0 >= 800 && c.x1 <= 1600 && c.width() == c.height() && c.width() == 90);
+    }
+
+    #[test]
+    fn enlarged_dots_land_where_the_adjusted_camera_projects_them() {
+        // Bright 3x3 dots at the projections of a few world points; after
+        // enlargement the dot centroids must sit at the adjusted camera's
+        // projections (to a fraction of a source pixel).
+        let k = Intrinsics::from_fov_x(0.69, 320, 240);
+        let cam = Camera::orbit(25.0, 30.0, 4.0, Vec3::ZERO, k);
+        let points = [
+            Vec3::new(0.2, 0.1, 0.0),
+            Vec3::new(-0.25, 0.2, 0.1),
+            Vec3::new(0.1, -0.3, -0.2),
+        ];
+        let mut img = RgbaImage::new(320, 240);
+        let mut mask = GrayImage::new(320, 240);
+        let mut centres = Vec::new();
+        for p in points {
+            let (x, y, _) = cam.project(p).unwrap();
+            let (ix, iy) = (x.floor() as u32, y.floor() as u32);
+            centres.push((ix as f32 + 0.5, iy as f32 + 0.5));
+            for dy in 0..3 {
+                for dx in 0..3 {
+                    img.put_pixel(ix + dx - 1, iy + dy - 1, Rgba([255, 255, 255, 255]));
+                }
+            }
+        }
+        // The object's mask: a box around all dots (dots on a dark object).
+        for (x, y, p) in img.enumerate_pixels_mut() {
+            let inside = centres.iter().any(|c| (x as f32 - c.0).abs() < 40.0 && (y as f32 - c.1).abs() < 40.0);
+            if inside {
+                mask.put_pixel(x, y, Luma([1]));
+                if p[3] == 0 {
+                    *p = Rgba([0, 0, 0, 255]);
+                }
+            }
+        }
+        let e = enlarge(&img, &mask, 1, &cam, &EnlargeOptions::default()).unwrap();
+        assert!(e.zoom.0 > 1.5 && (e.zoom.0 - e.zoom.1).abs() < 0.02, "{:?}", e.zoom);
+        for (c, p) in centres.iter().zip(points) {
+            // Where the dot centre (pixel centre, not the exact projection)
+            // lands: back-project it onto the point's depth, reproject.
+            let (_, _, depth) = cam.project(p).unwrap();
+            let (o, d) = cam.ray(c.0, c.1);
+            let fwd = -cam.c2w.z_axis.truncate();
+            let q = o + d * (depth / d.dot(fwd));
+            let (ex, ey, _) = e.camera.project(q).unwrap();
+            // Brightness-weighted centroid in a window around the prediction.
+            let (mut sw, mut sx, mut sy) = (0.0f64, 0.0f64, 0.0f64);
+            let r = (3.0 * e.zoom.0) as i64 + 3;
+            for y in (ey as i64 - r)..=(ey as i64 + r) {
+                for x in (ex as i64 - r)..=(ex as i64 + r) {
+                    if x < 0 || y < 0 || x >= 320 || y >= 240 {
+                        continue;
+                    }
+                    let v = e.image.get_pixel(x as u32, y as u32)[0] as f64;
+                    sw += v;
+                    sx += v * (x as f64 + 0.5);
+                    sy += v * (y as f64 + 0.5);
+                }
+            }
+            assert!(sw > 0.0);
+            let (cx, cy) = (sx / sw, sy / sw);
+            let tol = 0.35 * e.zoom.0;
+            assert!(
+                (cx - ex as f64).abs() < tol && (cy - ey as f64).abs() < tol,
+                "centroid ({cx:.2}, {cy:.2}) vs projection ({ex:.2}, {ey:.2})"
+            );
+        }
+        // Outside the object everything is transparent.
+        assert!(e
+            .image
+            .enumerate_pixels()
+            .all(|(x, y, p)| (p[3] == 0) == (e.mask.get_pixel(x, y)[0] == 0)));
+    }
+
+    #[test]
+    fn isolate_removes_objects_and_relabels() {
+        let img = RgbaImage::from_pixel(4, 1, Rgba([9, 9, 9, 255]));
+        let mask = GrayImage::from_raw(4, 1, vec![0, 1, 2, 3]).unwrap();
+        let (out, m) = isolate(&img, &mask, |l| if l == 3 { 1 } else { 0 });
+        assert_eq!(m.as_raw(), &vec![0, 0, 0, 1]);
+        assert_eq!(out.get_pixel(2, 0)[3], 0);
+        assert_eq!(out.get_pixel(3, 0)[3], 255);
+    }
+}

@@ -369,3 +369,113 @@ fn chamfer_inside(inside: &[bool], w: usize, h: usize) -> Vec<f32> {
     // A pixel next to the outside is half a pixel from the boundary.
     d.iter().map(|&v| if v > 0.0 { v - 0.5 } else { 0.0 }).collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use image::{Luma, Rgba};
+
+    /// A disc of diameter `d` pixels in an `n × n` image, textured with a
+    /// sinusoid of `k` cycles per `d` pixels along x.
+    fn disc(n: u32, d: f32, k: f32, contrast: f32) -> (RgbaImage, GrayImage) {
+        let c = n as f32 / 2.0;
+        let img = RgbaImage::from_fn(n, n, |x, y| {
+            let (dx, dy) = (x as f32 + 0.5 - c, y as f32 + 0.5 - c);
+            if dx * dx + dy * dy > d * d / 4.0 {
+                return Rgba([0; 4]);
+            }
+            let v = 0.5 + contrast * 0.5 * (std::f32::consts::TAU * k * dx / d).sin();
+            let q = (v * 255.0).round() as u8;
+            Rgba([q, q, q, 255])
+        });
+        let mask = GrayImage::from_fn(n, n, |x, y| Luma([u8::from(img.get_pixel(x, y)[3] > 0)]));
+        (img, mask)
+    }
+
+    #[test]
+    fn fft_sizes_are_smooth_and_minimal() {
+        assert_eq!(fft_size(1), 1);
+        assert_eq!(fft_size(7), 8);
+        assert_eq!(fft_size(481), 486);
+        assert_eq!(fft_size(1000), 1000);
+        for n in 1..300 {
+            let m = fft_size(n);
+            assert!(m >= n && (n..m).all(|k| fft_size(k) == m));
+        }
+    }
+
+    #[test]
+    fn a_sinusoid_is_found_at_its_frequency_in_object_units() {
+        let opts = FrequencyOptions::default();
+        for k in [4.0f32, 8.0, 16.0, 32.0] {
+            let (img, mask) = disc(300, 240.0, k, 0.8);
+            let f = detail_frequency(&img, &mask, 1, &opts).unwrap();
+            // Diameter D of a uniform disc equals its geometric diameter.
+            assert!((f.diameter_px - 240.0).abs() < 2.0, "{}", f.diameter_px);
+            // The window widens the line a little; 90 % lies just above k.
+            assert!(
+                f.cycles_per_diameter > 0.9 * k as f64 && f.cycles_per_diameter < 1.35 * k as f64,
+                "k = {k}: {f:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_measure_does_not_depend_on_image_size() {
+        let opts = FrequencyOptions::default();
+        let (a, ma) = disc(400, 300.0, 12.0, 0.6);
+        let (b, mb) = disc(200, 150.0, 12.0, 0.6);
+        let fa = detail_frequency(&a, &ma, 1, &opts).unwrap();
+        let fb = detail_frequency(&b, &mb, 1, &opts).unwrap();
+        let ratio = fa.cycles_per_diameter / fb.cycles_per_diameter;
+        assert!((ratio - 1.0).abs() < 0.08, "{fa:?} vs {fb:?}");
+        // …while cycles per pixel halve with the doubled size.
+        assert!((fb.cycles_per_pixel / fa.cycles_per_pixel - 2.0).abs() < 0.2);
+    }
+
+    #[test]
+    fn flat_objects_have_no_detail_and_tiny_or_absent_ones_no_value() {
+        let opts = FrequencyOptions::default();
+        let (img, mask) = disc(100, 80.0, 5.0, 0.0);
+        let f = detail_frequency(&img, &mask, 1, &opts).unwrap();
+        assert_eq!(f.cycles_per_diameter, 0.0, "{f:?}");
+        let (img, mask) = disc(100, 6.0, 5.0, 0.8);
+        assert!(detail_frequency(&img, &mask, 1, &opts).is_none());
+        assert!(detail_frequency(&img, &mask, 2, &opts).is_none());
+        let wrong = GrayImage::new(50, 50);
+        assert!(detail_frequency(&img, &wrong, 1, &opts).is_none());
+    }
+
+    #[test]
+    fn only_the_labelled_object_counts() {
+        let opts = FrequencyOptions::default();
+        let (mut img, mut mask) = disc(200, 120.0, 6.0, 0.7);
+        let alone = detail_frequency(&img, &mask, 1, &opts).unwrap();
+        // A finely striped second object beside it changes nothing.
+        for y in 0..40 {
+            for x in 0..40 {
+                let q = if x % 2 == 0 { 0 } else { 255 };
+                img.put_pixel(x, y, Rgba([q, q, q, 255]));
+                mask.put_pixel(x, y, Luma([2]));
+            }
+        }
+        let with_other = detail_frequency(&img, &mask, 1, &opts).unwrap();
+        assert_eq!(alone, with_other);
+        let other = detail_frequency(&img, &mask, 2, &opts).unwrap();
+        assert!(other.cycles_per_pixel > 0.3, "{other:?}");
+    }
+
+    #[test]
+    fn chamfer_distance_is_close_to_euclidean() {
+        let (w, h) = (41, 41);
+        let inside: Vec<bool> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32 - 20.0, (i / w) as f32 - 20.0);
+                x * x + y * y <= 400.0
+            })
+            .collect();
+        let d = chamfer_inside(&inside, w, h);
+        assert!((d[20 * w + 20] - 20.0).abs() < 1.5, "{}", d[20 * w + 20]);
+        assert_eq!(d[0], 0.0);
+    }
+}
