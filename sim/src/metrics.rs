@@ -64,12 +64,12 @@ pub enum MetricsError {
         height: u32,
     },
     /// A file could not be read.
-    #[error("cannot read {}: {source}", path.display())]
+    #[error("cannot read {}: {error}", path.display())]
     Io {
         /// The file.
         path: PathBuf,
-        /// Why.
-        source: std::io::Error,
+        /// Why (part of the message, so not repeated as a `source`).
+        error: std::io::Error,
     },
     /// A file is not a PNG, or its PNG data is broken.
     #[error("{}: {message}", path.display())]

@@ -10,9 +10,9 @@ const PNG_SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n
 ///
 /// Errors name the file: missing/unreadable, not a PNG, or broken PNG data.
 pub fn read_png(path: &Path) -> Result<RgbaImage, MetricsError> {
-    let bytes = std::fs::read(path).map_err(|source| MetricsError::Io {
+    let bytes = std::fs::read(path).map_err(|error| MetricsError::Io {
         path: path.to_owned(),
-        source,
+        error,
     })?;
     if !bytes.starts_with(&PNG_SIGNATURE) {
         return Err(MetricsError::NotPng {

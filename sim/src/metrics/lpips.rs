@@ -93,9 +93,9 @@ impl Lpips {
     /// `lin{0..4}.kernel` (all F32). Errors name the file and the tensor.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, MetricsError> {
         let path = path.as_ref();
-        let bytes = std::fs::read(path).map_err(|source| MetricsError::Io {
+        let bytes = std::fs::read(path).map_err(|error| MetricsError::Io {
             path: path.to_owned(),
-            source,
+            error,
         })?;
         let st = safetensors::SafeTensors::deserialize(&bytes).map_err(|e| {
             MetricsError::WeightsFormat {
