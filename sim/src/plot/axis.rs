@@ -232,7 +232,7 @@ mod tests {
         assert!(a.frac(0.61).unwrap() > 0.0 && a.frac(0.94).unwrap() < 1.0);
         let b = Axis::new(Scale::Linear, [0.0, 3.2e7], None, 5, false);
         assert_eq!(b.t_lo, 0.0, "non-negative data keeps a 0 floor");
-        assert_eq!(labels(&b)[..3], ["0", "1.0e7", "2.0e7"]);
+        assert_eq!(labels(&b)[..3], ["0", "1e7", "2e7"]);
     }
 
     #[test]

@@ -285,10 +285,8 @@ impl BarChart {
                         canvas.text(
                             &label,
                             fonts.small,
-                            (x0 + x1) / 2.0,
-                            y,
-                            HAlign::Center,
-                            v,
+                            ((x0 + x1) / 2.0, y),
+                            (HAlign::Center, v),
                             Rgb::DARK,
                         );
                         obstacles.push(((x0 + x1) / 2.0, y - text_height(fonts.small)));

@@ -203,15 +203,13 @@ impl<'a> Canvas<'a> {
         }
     }
 
-    /// Text anchored at (x, y).
+    /// Text anchored at `(x, y)` by `(h, v)`.
     pub fn text(
         &mut self,
         s: &str,
         font: &MonoFont<'_>,
-        x: f32,
-        y: f32,
-        h: HAlign,
-        v: VAlign,
+        (x, y): (f32, f32),
+        (h, v): (HAlign, VAlign),
         color: Rgb,
     ) {
         let (left, top) = anchor(font, s, x, y, h, v);

@@ -109,10 +109,8 @@ pub(crate) fn axes(
         canvas.text(
             label,
             fonts.tick,
-            area.left - TICK - TICK_GAP,
-            py,
-            HAlign::Right,
-            VAlign::Middle,
+            (area.left - TICK - TICK_GAP, py),
+            (HAlign::Right, VAlign::Middle),
             Rgb::DARK,
         );
     }
@@ -124,10 +122,8 @@ pub(crate) fn axes(
         canvas.text(
             title,
             fonts.title,
-            w / 2.0,
-            MARGIN,
-            HAlign::Center,
-            VAlign::Top,
+            (w / 2.0, MARGIN),
+            (HAlign::Center, VAlign::Top),
             Rgb::BLACK,
         );
     }
@@ -135,10 +131,8 @@ pub(crate) fn axes(
         canvas.text(
             x_label,
             fonts.label,
-            (area.left + area.right) / 2.0,
-            h - MARGIN,
-            HAlign::Center,
-            VAlign::Bottom,
+            ((area.left + area.right) / 2.0, h - MARGIN),
+            (HAlign::Center, VAlign::Bottom),
             Rgb::DARK,
         );
     }
@@ -159,10 +153,8 @@ pub(crate) fn x_tick(canvas: &mut Canvas<'_>, fonts: &Fonts, area: &Area, px: f3
     canvas.text(
         label,
         fonts.tick,
-        px,
-        area.bottom + TICK + TICK_GAP,
-        HAlign::Center,
-        VAlign::Top,
+        (px, area.bottom + TICK + TICK_GAP),
+        (HAlign::Center, VAlign::Top),
         Rgb::DARK,
     );
 }

@@ -126,10 +126,8 @@ pub(crate) fn draw(
         canvas.text(
             &e.name,
             font,
-            sx1 + GAP,
-            cy,
-            HAlign::Left,
-            VAlign::Middle,
+            (sx1 + GAP, cy),
+            (HAlign::Left, VAlign::Middle),
             Rgb::DARK,
         );
     }
