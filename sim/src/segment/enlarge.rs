@@ -132,38 +132,41 @@ pub fn enlarge_within(
     let (bbox, _) = mask_bbox(mask, label)?;
     let crop = crop_box(bbox, region, opts.margin);
     // Premultiplied crop with everything but the object made transparent.
-    let src = Rgba32FImage::from_fn(crop.width(), crop.height(), |x, y| {
-        let (sx, sy) = (crop.x0 + x, crop.y0 + y);
-        if mask.get_pixel(sx, sy)[0] != label {
-            return Rgba([0.0; 4]);
+    let (iw, cw) = (image.width() as usize, crop.width() as usize);
+    let (raw, mraw) = (image.as_raw(), mask.as_raw());
+    let mut buf = vec![0.0f32; 4 * cw * crop.height() as usize];
+    for y in 0..crop.height() as usize {
+        for x in 0..cw {
+            let i = (crop.y0 as usize + y) * iw + crop.x0 as usize + x;
+            if mraw[i] != label {
+                continue;
+            }
+            let p = &raw[4 * i..4 * i + 4];
+            let a = p[3] as f32 / 255.0;
+            let o = 4 * (y * cw + x);
+            buf[o] = p[0] as f32 / 255.0 * a;
+            buf[o + 1] = p[1] as f32 / 255.0 * a;
+            buf[o + 2] = p[2] as f32 / 255.0 * a;
+            buf[o + 3] = a;
         }
-        let p = image.get_pixel(sx, sy);
-        let a = p[3] as f32 / 255.0;
-        Rgba([
-            p[0] as f32 / 255.0 * a,
-            p[1] as f32 / 255.0 * a,
-            p[2] as f32 / 255.0 * a,
-            a,
-        ])
-    });
-    let binary = GrayImage::from_fn(crop.width(), crop.height(), |x, y| {
-        Luma([if mask.get_pixel(crop.x0 + x, crop.y0 + y)[0] == label {
-            255
-        } else {
-            0
-        }])
-    });
+    }
+    let src = Rgba32FImage::from_raw(crop.width(), crop.height(), buf)?;
     let big = imageops::resize(&src, w, h, opts.filter);
-    // The mask is resampled the same way and cut at one half, so the
-    // filter's ringing cannot leave faint alpha outside the silhouette.
-    let big_mask = imageops::resize(&binary, w, h, FilterType::Triangle);
-    let mask_out = GrayImage::from_fn(w, h, |x, y| Luma([u8::from(big_mask.get_pixel(x, y)[0] >= 128)]));
-    let out = RgbaImage::from_fn(w, h, |x, y| {
-        if mask_out.get_pixel(x, y)[0] == 0 {
-            return Rgba([0; 4]);
+    // The filter rings near the silhouette: alpha below RING is cut so no
+    // faint halo lies outside it, and the mask is where coverage ≥ ½.
+    const RING: f32 = 8.0 / 255.0;
+    let mut out = RgbaImage::new(w, h);
+    let mut mask_out = GrayImage::new(w, h);
+    for ((p, q), m) in big
+        .pixels()
+        .zip(out.pixels_mut())
+        .zip(mask_out.pixels_mut())
+    {
+        if p[3] >= RING {
+            *q = unpremultiply(p);
+            m[0] = u8::from(p[3] >= 0.5);
         }
-        unpremultiply(big.get_pixel(x, y))
-    });
+    }
     let k = camera.intrinsics;
     let intrinsics: Intrinsics = k.cropped(
         crop.x0 as f32,
@@ -350,11 +353,11 @@ mod tests {
                 "centroid ({cx:.2}, {cy:.2}) vs projection ({ex:.2}, {ey:.2})"
             );
         }
-        // Outside the object everything is transparent.
+        // The mask is where the enlarged coverage is at least one half.
         assert!(e
             .image
             .enumerate_pixels()
-            .all(|(x, y, p)| (p[3] == 0) == (e.mask.get_pixel(x, y)[0] == 0)));
+            .all(|(x, y, p)| (p[3] >= 128) == (e.mask.get_pixel(x, y)[0] == 1)));
     }
 
     #[test]
