@@ -11,15 +11,17 @@ use nerflex_sim::segment::{
 
 #[test]
 fn ranking_follows_the_stripes_and_is_stable_from_800_to_400_pixels() {
-    let cap = sphere_capture(&ring_of_five(), 10, 0, 800);
+    let cap = sphere_capture(&ring_of_five(), 20, 0, 800);
     let small = resize_capture(&cap, 400, 400).unwrap();
+    let tiny = resize_capture(&cap, 200, 200).unwrap();
     let opts = FrequencyOptions::default();
     let a800 = analyse(&cap, &opts).unwrap();
     let a400 = analyse(&small, &opts).unwrap();
-    for (a, b) in a800.objects.iter().zip(&a400.objects) {
+    let a200 = analyse(&tiny, &opts).unwrap();
+    for ((a, b), c) in a800.objects.iter().zip(&a400.objects).zip(&a200.objects) {
         eprintln!(
-            "{}: {:.2} (800) {:.2} (400) cycles/diameter",
-            a.name, a.max_frequency, b.max_frequency
+            "{}: {:.1} (800) {:.1} (400) {:.1} (200) cycles per object diameter",
+            a.name, a.max_frequency, b.max_frequency, c.max_frequency
         );
         // Resolved detail keeps its value in object units.
         assert!((a.max_frequency / b.max_frequency - 1.0).abs() < 0.15);

@@ -184,6 +184,27 @@ pub fn group_view(
     }
 }
 
+/// Builds the views of `group` from `frames` in parallel (rayon) and hands
+/// each to `f`; returns how many were built (frames where none of the
+/// group's objects is visible are skipped).
+pub fn for_each_view<F>(
+    frames: &[SegFrame],
+    group: &Group,
+    opts: &EnlargeOptions,
+    f: F,
+) -> Result<usize, SegmentError>
+where
+    F: Fn(GroupView) -> Result<(), SegmentError> + Sync,
+{
+    frames
+        .par_iter()
+        .map(|frame| match group_view(frame, group, opts)? {
+            Some(v) => f(v).map(|()| 1),
+            None => Ok(0),
+        })
+        .try_reduce(|| 0, |a, b| Ok(a + b))
+}
+
 /// Settings of a whole segmentation run.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct SegmentOptions {
