@@ -58,10 +58,16 @@ fn summary(name: &str, cap: &SegCapture) {
     for _ in 0..3 {
         let (t, c) = (Instant::now(), cpu_seconds());
         let views = analyse_and_views(cap);
-        let mem = (t.elapsed().as_secs_f64(), cpu_seconds().zip(c).map(|(b, a)| b - a));
+        let mem = (
+            t.elapsed().as_secs_f64(),
+            cpu_seconds().zip(c).map(|(b, a)| b - a),
+        );
         let (t, c) = (Instant::now(), cpu_seconds());
         let seg = segment(cap, &SegmentOptions::default(), &out).expect("segment");
-        let full = (t.elapsed().as_secs_f64(), cpu_seconds().zip(c).map(|(b, a)| b - a));
+        let full = (
+            t.elapsed().as_secs_f64(),
+            cpu_seconds().zip(c).map(|(b, a)| b - a),
+        );
         runs.push((mem, full, views, seg.timings.analyse_s, seg.groups.len()));
     }
     std::fs::remove_dir_all(&out).ok();
@@ -75,8 +81,16 @@ fn summary(name: &str, cap: &SegCapture) {
         cap.objects.len()
     );
     println!("  frequency analysis          {analyse_s:>6.2} s");
-    println!("  analysis + views in memory  {:>6.2} s{}", mem.0, cpu(mem.1));
-    println!("  whole stage with PNG output {:>6.2} s{}", full.0, cpu(full.1));
+    println!(
+        "  analysis + views in memory  {:>6.2} s{}",
+        mem.0,
+        cpu(mem.1)
+    );
+    println!(
+        "  whole stage with PNG output {:>6.2} s{}",
+        full.0,
+        cpu(full.1)
+    );
     println!("  NeRFlex paper (20 images)   {PAPER_SECONDS:>6.2} s");
 }
 

@@ -7,7 +7,7 @@
 //! 2. [`analysis`]: each object's maximum over views and the view where it
 //!    peaks; the threshold α (default: the lowest maximum) and the decision
 //!    (dedicated iff the maximum exceeds α, else the shared group).
-//! 3. [`enlarge`]: each dedicated object's views cropped to its mask's
+//! 3. [`mod@enlarge`]: each dedicated object's views cropped to its mask's
 //!    bounding box and scaled back to full size, with adjusted cameras; the
 //!    shared group's views with the dedicated objects removed.
 //! 4. [`output`]: one NeRF-synthetic folder per network and
@@ -29,4 +29,4 @@ pub use analysis::{analyse, decide, AlphaSource, Analysis, Decision, Decisions, 
 pub use enlarge::{enlarge, EnlargeOptions, Enlarged};
 pub use frequency::{detail_frequency, DetailFrequency, FrequencyOptions};
 pub use input::{SegCapture, SegFrame, SegmentError};
-pub use output::{segment, Segmentation, SegmentOptions, SEGMENTATION_FILE};
+pub use output::{segment, SegmentOptions, Segmentation, SEGMENTATION_FILE};

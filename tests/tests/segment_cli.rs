@@ -29,7 +29,10 @@ fn bad_flags_and_inputs_are_clear_errors() {
     let out = dir.path().join("out");
     let missing = dir.path().join("no-such-capture");
     let e = error_of(args(Some(&missing), &out));
-    assert!(e.contains("--capture") && e.contains("no-such-capture"), "{e}");
+    assert!(
+        e.contains("--capture") && e.contains("no-such-capture"),
+        "{e}"
+    );
 
     let mut a = args(Some(&missing), &out);
     a.energy_share = 1.5;
@@ -62,7 +65,10 @@ fn bad_flags_and_inputs_are_clear_errors() {
     let mut a = args(None, &out);
     a.compose = vec![missing.clone(), PathBuf::from("also-missing")];
     let e = error_of(a);
-    assert!(e.contains("--compose") && e.contains("no-such-capture"), "{e}");
+    assert!(
+        e.contains("--compose") && e.contains("no-such-capture"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -51,7 +51,11 @@ fn lego_chair_views_are_consistent_with_the_source_cameras() {
     let dir = out.path().join(&top.folder);
     for split in ["train", "test"] {
         let t = Transforms::read(&dir.join(format!("transforms_{split}.json"))).unwrap();
-        let frames = if split == "train" { &cap.train } else { &cap.test };
+        let frames = if split == "train" {
+            &cap.train
+        } else {
+            &cap.test
+        };
         assert_eq!(t.frames.len(), frames.len());
         for (i, f) in t.frames.iter().enumerate() {
             let img = read_rgba(&dir.join(format!("{}.png", f.file_path))).unwrap();
@@ -77,7 +81,10 @@ fn lego_chair_views_are_consistent_with_the_source_cameras() {
                         continue;
                     }
                     let q = src.image.get_pixel(ix as u32, iy as u32);
-                    diff += (0..3).map(|c| (p[c] as f64 - q[c] as f64).abs()).sum::<f64>() / 3.0;
+                    diff += (0..3)
+                        .map(|c| (p[c] as f64 - q[c] as f64).abs())
+                        .sum::<f64>()
+                        / 3.0;
                     n += 1;
                 }
                 assert!(n > 100, "{}: only {n} pixels compared", f.file_path);

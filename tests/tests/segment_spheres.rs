@@ -69,7 +69,11 @@ fn segment_writes_training_sets_that_match_the_geometry() {
     // Every dedicated view: alpha only on the object, and a fresh render of
     // that sphere alone through the written camera covers the same pixels
     // and shows the same colours.
-    for o in seg.objects.iter().filter(|o| o.decision == Decision::Dedicated) {
+    for o in seg
+        .objects
+        .iter()
+        .filter(|o| o.decision == Decision::Dedicated)
+    {
         let dir = out.path().join(&o.folder);
         let t = Transforms::read(&dir.join("transforms_train.json")).unwrap();
         assert_eq!(t.frames.len(), seg.groups[o.group].train_frames);
@@ -89,16 +93,29 @@ fn segment_writes_training_sets_that_match_the_geometry() {
                 union += u32::from(a || b);
                 if a && b && p[3] == 255 {
                     let q = truth.get_pixel(x, y);
-                    diff += (0..3).map(|c| (p[c] as f64 - q[c] as f64).abs()).sum::<f64>() / 3.0;
+                    diff += (0..3)
+                        .map(|c| (p[c] as f64 - q[c] as f64).abs())
+                        .sum::<f64>()
+                        / 3.0;
                     n += 1;
                 }
             }
             let iou = inter as f64 / union as f64;
-            eprintln!("{} {}: IoU {iou:.3} diff {:.2}", o.name, f.file_path, diff / n as f64);
+            eprintln!(
+                "{} {}: IoU {iou:.3} diff {:.2}",
+                o.name,
+                f.file_path,
+                diff / n as f64
+            );
             // The sphere may be partly hidden by a nearer one in the capture.
             assert!(iou > 0.93, "{} {}: IoU {iou}", o.name, f.file_path);
             let mean_diff = diff / n as f64;
-            assert!(mean_diff < 6.0, "{} {}: mean |Δ| {mean_diff}", o.name, f.file_path);
+            assert!(
+                mean_diff < 6.0,
+                "{} {}: mean |Δ| {mean_diff}",
+                o.name,
+                f.file_path
+            );
         }
     }
 
@@ -106,7 +123,11 @@ fn segment_writes_training_sets_that_match_the_geometry() {
     let dir = out.path().join(&shared.folder);
     let t = Transforms::read(&dir.join("transforms_train.json")).unwrap();
     for f in &t.frames {
-        let src = cap.train.iter().find(|s| s.file_path == f.file_path).unwrap();
+        let src = cap
+            .train
+            .iter()
+            .find(|s| s.file_path == f.file_path)
+            .unwrap();
         let img = read_rgba(&dir.join(format!("{}.png", f.file_path))).unwrap();
         for (x, y, p) in img.enumerate_pixels() {
             let label = src.mask.get_pixel(x, y)[0];

@@ -86,8 +86,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             margin: args.margin,
         },
     };
-    let seg = segment(&cap, &opts, &args.out)
-        .with_context(|| format!("segmenting {}", cap.source))?;
+    let seg =
+        segment(&cap, &opts, &args.out).with_context(|| format!("segmenting {}", cap.source))?;
     print!("{}", table(&seg));
     println!(
         "wrote {} ({} network{}) in {:.2} s (analysis {:.2} s, views {:.2} s)",
@@ -104,7 +104,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 fn load(args: &Args) -> anyhow::Result<SegCapture> {
     if !args.compose.is_empty() {
         let dirs: Vec<&std::path::Path> = args.compose.iter().map(|p| p.as_path()).collect();
-        return Ok(compose_dirs(&dirs, args.size).context("--compose")?);
+        return compose_dirs(&dirs, args.size).context("--compose");
     }
     let dir = args
         .capture
@@ -126,7 +126,12 @@ pub fn table(seg: &Segmentation) -> String {
     let mut rows: Vec<&crate::segment::output::ObjectRecord> = seg.objects.iter().collect();
     rows.sort_by(|a, b| b.max_frequency.total_cmp(&a.max_frequency));
     let name_w = rows.iter().map(|o| o.name.len()).max().unwrap_or(6).max(6);
-    let peak_w = rows.iter().map(|o| o.peak_image.len()).max().unwrap_or(10).max(10);
+    let peak_w = rows
+        .iter()
+        .map(|o| o.peak_image.len())
+        .max()
+        .unwrap_or(10)
+        .max(10);
     let mut s = format!(
         "{:<name_w$}  {:>10}  {:<peak_w$}  {:<9}  folder\n",
         "object", "max freq", "peak image", "decision"

@@ -145,7 +145,11 @@ pub fn compose_dirs(dirs: &[&Path], size: Option<u32>) -> Result<SegCapture, Seg
 
 /// The same capture at `width × height`: colour resampled premultiplied
 /// with Lanczos-3, masks by nearest neighbour, cameras rescaled.
-pub fn resize_capture(cap: &SegCapture, width: u32, height: u32) -> Result<SegCapture, SegmentError> {
+pub fn resize_capture(
+    cap: &SegCapture,
+    width: u32,
+    height: u32,
+) -> Result<SegCapture, SegmentError> {
     if width == 0 || height == 0 {
         return Err(SegmentError::Invalid(format!(
             "resize: {width}×{height} is not an image size"

@@ -263,25 +263,91 @@ mod tests {
     #[test]
     fn crop_box_keeps_the_aspect_contains_the_object_and_stays_inside() {
         let cases = [
-            (PixelBox { x0: 10, y0: 20, x1: 30, y1: 100 }, 800, 800),
-            (PixelBox { x0: 0, y0: 0, x1: 800, y1: 5 }, 800, 800),
-            (PixelBox { x0: 790, y0: 700, x1: 800, y1: 800 }, 800, 800),
-            (PixelBox { x0: 100, y0: 100, x1: 200, y1: 150 }, 1600, 800),
-            (PixelBox { x0: 3, y0: 3, x1: 4, y1: 4 }, 640, 480),
+            (
+                PixelBox {
+                    x0: 10,
+                    y0: 20,
+                    x1: 30,
+                    y1: 100,
+                },
+                800,
+                800,
+            ),
+            (
+                PixelBox {
+                    x0: 0,
+                    y0: 0,
+                    x1: 800,
+                    y1: 5,
+                },
+                800,
+                800,
+            ),
+            (
+                PixelBox {
+                    x0: 790,
+                    y0: 700,
+                    x1: 800,
+                    y1: 800,
+                },
+                800,
+                800,
+            ),
+            (
+                PixelBox {
+                    x0: 100,
+                    y0: 100,
+                    x1: 200,
+                    y1: 150,
+                },
+                1600,
+                800,
+            ),
+            (
+                PixelBox {
+                    x0: 3,
+                    y0: 3,
+                    x1: 4,
+                    y1: 4,
+                },
+                640,
+                480,
+            ),
         ];
         for (b, w, h) in cases {
             let c = crop_box(b, full(w, h), 0.0);
-            assert!(c.x0 <= b.x0 && c.y0 <= b.y0 && c.x1 >= b.x1 && c.y1 >= b.y1, "{b:?} {c:?}");
+            assert!(
+                c.x0 <= b.x0 && c.y0 <= b.y0 && c.x1 >= b.x1 && c.y1 >= b.y1,
+                "{b:?} {c:?}"
+            );
             assert!(c.x1 <= w && c.y1 <= h);
             let aspect = (c.width() as f64 / c.height() as f64) / (w as f64 / h as f64);
-            assert!((aspect - 1.0).abs() < 2.0 / c.height().min(c.width()) as f64 + 1e-9, "{c:?}");
+            assert!(
+                (aspect - 1.0).abs() < 2.0 / c.height().min(c.width()) as f64 + 1e-9,
+                "{c:?}"
+            );
         }
         // A margin grows the box; a region confines it.
-        let b = PixelBox { x0: 300, y0: 300, x1: 400, y1: 400 };
+        let b = PixelBox {
+            x0: 300,
+            y0: 300,
+            x1: 400,
+            y1: 400,
+        };
         let c = crop_box(b, full(800, 800), 0.1);
         assert_eq!((c.width(), c.height()), (120, 120));
-        let r = PixelBox { x0: 800, y0: 0, x1: 1600, y1: 800 };
-        let b = PixelBox { x0: 810, y0: 10, x1: 900, y1: 30 };
+        let r = PixelBox {
+            x0: 800,
+            y0: 0,
+            x1: 1600,
+            y1: 800,
+        };
+        let b = PixelBox {
+            x0: 810,
+            y0: 10,
+            x1: 900,
+            y1: 30,
+        };
         let c = crop_box(b, r, 0.0);
         assert!(c.x0 >= 800 && c.x1 <= 1600 && c.width() == c.height() && c.width() == 90);
     }
@@ -313,7 +379,9 @@ mod tests {
         }
         // The object's mask: a box around all dots (dots on a dark object).
         for (x, y, p) in img.enumerate_pixels_mut() {
-            let inside = centres.iter().any(|c| (x as f32 - c.0).abs() < 40.0 && (y as f32 - c.1).abs() < 40.0);
+            let inside = centres
+                .iter()
+                .any(|c| (x as f32 - c.0).abs() < 40.0 && (y as f32 - c.1).abs() < 40.0);
             if inside {
                 mask.put_pixel(x, y, Luma([1]));
                 if p[3] == 0 {
@@ -322,7 +390,11 @@ mod tests {
             }
         }
         let e = enlarge(&img, &mask, 1, &cam, &EnlargeOptions::default()).unwrap();
-        assert!(e.zoom.0 > 1.5 && (e.zoom.0 - e.zoom.1).abs() < 0.02, "{:?}", e.zoom);
+        assert!(
+            e.zoom.0 > 1.5 && (e.zoom.0 - e.zoom.1).abs() < 0.02,
+            "{:?}",
+            e.zoom
+        );
         for (c, p) in centres.iter().zip(points) {
             // Where the dot centre (pixel centre, not the exact projection)
             // lands: back-project it onto the point's depth, reproject.

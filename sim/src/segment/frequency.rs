@@ -248,7 +248,8 @@ pub fn detail_frequency(
     // to the luma; its expected power in every bin is σ²·Σw². Removing it
     // keeps a flat, featureless object from reporting its rounding noise
     // as detail.
-    let sigma2 = (0.2126f64.powi(2) + 0.7152f64.powi(2) + 0.0722f64.powi(2)) / (12.0 * 255.0 * 255.0);
+    let sigma2 =
+        (0.2126f64.powi(2) + 0.7152f64.powi(2) + 0.0722f64.powi(2)) / (12.0 * 255.0 * 255.0);
     let floor = sigma2 * weight.iter().map(|&w| (w as f64) * (w as f64)).sum::<f64>();
 
     // Energy histogram over radius, bins of 1/4 of the frequency spacing.
@@ -258,9 +259,17 @@ pub fn detail_frequency(
     let half = l as i64 / 2;
     let mut total = 0.0f64;
     for v in 0..l {
-        let fv = if (v as i64) > half { v as i64 - l as i64 } else { v as i64 };
+        let fv = if (v as i64) > half {
+            v as i64 - l as i64
+        } else {
+            v as i64
+        };
         for u in 0..l {
-            let fu = if (u as i64) > half { u as i64 - l as i64 } else { u as i64 };
+            let fu = if (u as i64) > half {
+                u as i64 - l as i64
+            } else {
+                u as i64
+            };
             if fu == 0 && fv == 0 {
                 continue;
             }
@@ -367,7 +376,9 @@ fn chamfer_inside(inside: &[bool], w: usize, h: usize) -> Vec<f32> {
         }
     }
     // A pixel next to the outside is half a pixel from the boundary.
-    d.iter().map(|&v| if v > 0.0 { v - 0.5 } else { 0.0 }).collect()
+    d.iter()
+        .map(|&v| if v > 0.0 { v - 0.5 } else { 0.0 })
+        .collect()
 }
 
 #[cfg(test)]

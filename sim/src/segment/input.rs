@@ -167,9 +167,7 @@ impl SegCapture {
 
     /// Image size (width, height) of the capture.
     pub fn image_size(&self) -> (u32, u32) {
-        self.train
-            .first()
-            .map_or((0, 0), |f| f.image.dimensions())
+        self.train.first().map_or((0, 0), |f| f.image.dimensions())
     }
 
     /// Reads a NeRF-synthetic folder (`transforms_{train,test}.json`,

@@ -119,15 +119,13 @@ pub fn group_view(
                 frame.region_of(o),
                 opts,
             )
-            .map(
-                |e| GroupView {
-                    file_path: frame.file_path.clone(),
-                    image: e.image,
-                    mask: e.mask,
-                    camera: e.camera,
-                    zoom: e.zoom,
-                },
-            ))
+            .map(|e| GroupView {
+                file_path: frame.file_path.clone(),
+                image: e.image,
+                mask: e.mask,
+                camera: e.camera,
+                zoom: e.zoom,
+            }))
         }
         Decision::Shared => {
             let relabel = |l: u8| -> u8 {
@@ -330,7 +328,10 @@ impl Segmentation {
             source,
         })?;
         let s: Segmentation = serde_json::from_str(&text).map_err(|e| {
-            SegmentError::Invalid(format!("{}: invalid segmentation JSON: {e}", path.display()))
+            SegmentError::Invalid(format!(
+                "{}: invalid segmentation JSON: {e}",
+                path.display()
+            ))
         })?;
         if s.version != SEGMENTATION_VERSION {
             return Err(SegmentError::Invalid(format!(
@@ -340,7 +341,10 @@ impl Segmentation {
             )));
         }
         for o in &s.objects {
-            if s.groups.get(o.group).is_none_or(|g| !g.objects.contains(&o.name)) {
+            if s.groups
+                .get(o.group)
+                .is_none_or(|g| !g.objects.contains(&o.name))
+            {
                 return Err(SegmentError::Invalid(format!(
                     "{}: object {:?}: group {} does not list it",
                     path.display(),
@@ -415,14 +419,19 @@ fn summary(
         .iter()
         .enumerate()
         .map(|(o, a)| {
-            let group = groups.iter().position(|g| g.objects.contains(&o)).unwrap_or(0);
+            let group = groups
+                .iter()
+                .position(|g| g.objects.contains(&o))
+                .unwrap_or(0);
             ObjectRecord {
                 name: a.name.clone(),
                 label: a.label,
                 max_frequency: a.max_frequency,
                 peak_image: a.peak_image.clone(),
                 decision: decisions.decisions[o],
-                folder: groups.get(group).map_or_else(String::new, |g| g.folder.clone()),
+                folder: groups
+                    .get(group)
+                    .map_or_else(String::new, |g| g.folder.clone()),
                 group,
                 per_image: a
                     .per_image
@@ -457,6 +466,13 @@ fn summary(
     }
 }
 
+/// What a written view contributes to its transforms file.
+struct WrittenView {
+    entry: FrameEntry,
+    zoom: f64,
+    size: (u32, u32),
+}
+
 /// Writes one group's folder; returns its record.
 fn write_group(
     cap: &SegCapture,
@@ -481,7 +497,7 @@ fn write_group(
         if frames.is_empty() {
             continue;
         }
-        let written: Vec<Option<(FrameEntry, f64, (u32, u32))>> = frames
+        let written: Vec<Option<WrittenView>> = frames
             .par_iter()
             .map(|f| -> Result<_, SegmentError> {
                 let Some(v) = group_view(f, group, opts)? else {
@@ -496,8 +512,10 @@ fn write_group(
                     source,
                 })?;
                 let k = v.camera.intrinsics;
-                Ok(Some((
-                    FrameEntry {
+                Ok(Some(WrittenView {
+                    size: v.image.dimensions(),
+                    zoom: 0.5 * (v.zoom.0 + v.zoom.1),
+                    entry: FrameEntry {
                         file_path: v.file_path,
                         transform_matrix: rows_from_mat4(&v.camera.c2w),
                         fl_x: Some(k.fx as f64),
@@ -506,19 +524,17 @@ fn write_group(
                         cy: Some(k.cy as f64),
                         extra: Default::default(),
                     },
-                    0.5 * (v.zoom.0 + v.zoom.1),
-                    v.image.dimensions(),
-                )))
+                }))
             })
             .collect::<Result<_, _>>()?;
-        let frames: Vec<(FrameEntry, f64, (u32, u32))> = written.into_iter().flatten().collect();
-        for (e, _, wh) in &frames {
+        let frames: Vec<WrittenView> = written.into_iter().flatten().collect();
+        for v in &frames {
             match size {
-                None => size = Some(*wh),
-                Some(s) if s != *wh => {
+                None => size = Some(v.size),
+                Some(s) if s != v.size => {
                     return Err(SegmentError::Invalid(format!(
-                        "{}: group {:?}: view {} is {wh:?}, others are {s:?}",
-                        cap.source, group.folder, e.file_path
+                        "{}: group {:?}: view {} is {:?}, others are {s:?}",
+                        cap.source, group.folder, v.entry.file_path, v.size
                     )))
                 }
                 Some(_) => {}
@@ -536,7 +552,7 @@ fn write_group(
         let idx = usize::from(split == "test");
         counts[idx] = frames.len();
         if split == "train" {
-            zoom_sum = frames.iter().map(|(_, z, _)| z).sum::<f64>();
+            zoom_sum = frames.iter().map(|v| v.zoom).sum::<f64>();
         }
         let (w, h) = size.unwrap_or_default();
         let t = Transforms {
@@ -547,7 +563,7 @@ fn write_group(
             cy: None,
             w: Some(w),
             h: Some(h),
-            frames: frames.into_iter().map(|(e, _, _)| e).collect(),
+            frames: frames.into_iter().map(|v| v.entry).collect(),
         };
         t.write(&tmp_dir.join(format!("transforms_{split}.json")))?;
     }
@@ -576,7 +592,9 @@ fn replace_dir(tmp: &Path, target: &Path) -> Result<(), SegmentError> {
     if target.exists() {
         let old = target.with_file_name(format!(
             ".{}.old",
-            target.file_name().map_or_else(String::new, |s| s.to_string_lossy().into_owned())
+            target
+                .file_name()
+                .map_or_else(String::new, |s| s.to_string_lossy().into_owned())
         ));
         if old.exists() {
             std::fs::remove_dir_all(&old).map_err(io(old.clone()))?;
