@@ -101,3 +101,38 @@ fn the_table_lists_objects_by_decreasing_frequency_with_decisions() {
     assert!(lines[5].contains("shared") && lines[1].contains("dedicated"));
     assert!(t.contains("lowest maximum"));
 }
+
+#[test]
+fn a_colour_mask_or_a_label_without_an_object_is_refused_naming_the_file() {
+    use nerflex_sim::segment::SegCapture;
+    let cap = sphere_capture(&ring_of_five(), 2, 0, 96);
+    let dir = tempfile::tempdir().unwrap();
+    let seg = segment(
+        &cap,
+        &SegmentOptions {
+            alpha: Some(1e9),
+            ..Default::default()
+        },
+        dir.path(),
+    )
+    .unwrap();
+    let shared = dir.path().join(&seg.groups[0].folder);
+    // Masks with labels 1..5 and no scene.json: five unnamed objects.
+    assert_eq!(SegCapture::load(&shared).unwrap().objects.len(), 5);
+    // scene.json naming fewer objects than the masks use.
+    std::fs::write(shared.join("scene.json"), r#"{"objects": [{"name": "a"}]}"#).unwrap();
+    let e = SegCapture::load(&shared).unwrap_err().to_string();
+    assert!(e.contains("mask label") && e.contains("1 object"), "{e}");
+    std::fs::write(shared.join("scene.json"), r#"{"objects": [{"nom": "a"}]}"#).unwrap();
+    let e = SegCapture::load(&shared).unwrap_err().to_string();
+    assert!(e.contains("scene.json") && e.contains("name"), "{e}");
+    std::fs::remove_file(shared.join("scene.json")).unwrap();
+    // An RGBA file where a grayscale mask belongs.
+    std::fs::copy(
+        shared.join("train/r_0.png"),
+        shared.join("train/r_0_mask.png"),
+    )
+    .unwrap();
+    let e = SegCapture::load(&shared).unwrap_err().to_string();
+    assert!(e.contains("r_0_mask.png") && e.contains("grayscale"), "{e}");
+}

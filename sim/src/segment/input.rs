@@ -152,6 +152,15 @@ impl SegCapture {
                     self.objects.len()
                 ));
             }
+            if let Some(&l) = f.mask.as_raw().iter().max() {
+                if l as usize > self.objects.len() {
+                    return bad(format!(
+                        "{}: mask label {l} but only {} object(s) are named",
+                        f.file_path,
+                        self.objects.len()
+                    ));
+                }
+            }
             for (o, v) in f.object_views.iter().enumerate() {
                 let r = v.region;
                 if r.x0 >= r.x1 || r.y0 >= r.y1 || r.x1 > size.0 || r.y1 > size.1 {
@@ -170,11 +179,13 @@ impl SegCapture {
         self.train.first().map_or((0, 0), |f| f.image.dimensions())
     }
 
-    /// Reads a NeRF-synthetic folder (`transforms_{train,test}.json`,
-    /// images beside them). Without instance masks, the capture is one
-    /// object named after the folder whose mask is `alpha > 0`.
+    /// Reads a capture folder in the NeRF-synthetic layout:
+    /// `transforms_{train,test}.json`, `<file_path>.png` per frame, and when
+    /// present the instance masks `<file_path>_mask.png` and `scene.json`
+    /// (object names). Without masks the capture is one object named after
+    /// the folder whose mask is `alpha > 0`.
     pub fn load(dir: &Path) -> Result<Self, SegmentError> {
-        let name = dir
+        let folder_name = dir
             .canonicalize()
             .ok()
             .and_then(|p| p.file_name().map(|s| s.to_string_lossy().into_owned()))
@@ -191,8 +202,24 @@ impl SegCapture {
             Some(t) => read_frames(dir, t)?,
             None => Vec::new(),
         };
+        let objects = match scene_object_names(dir)? {
+            Some(names) => names,
+            None => {
+                // No scene.json: as many objects as the largest mask label.
+                let max = train
+                    .iter()
+                    .chain(&test)
+                    .flat_map(|f| f.mask.as_raw().iter().copied().max())
+                    .max()
+                    .unwrap_or(0);
+                match max {
+                    0 | 1 => vec![folder_name],
+                    n => (1..=n).map(|k| format!("object{k}")).collect(),
+                }
+            }
+        };
         let cap = SegCapture {
-            objects: vec![name],
+            objects,
             camera_angle_x: train_t.camera_angle_x,
             train,
             test,
@@ -201,6 +228,40 @@ impl SegCapture {
         cap.validate()?;
         Ok(cap)
     }
+}
+
+/// Object names from `scene.json` (`objects[i].name`), if the file exists.
+fn scene_object_names(dir: &Path) -> Result<Option<Vec<String>>, SegmentError> {
+    let path = dir.join("scene.json");
+    if !path.is_file() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&path).map_err(|source| SegmentError::Io {
+        path: path.clone(),
+        source,
+    })?;
+    let v: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| SegmentError::Invalid(format!("{}: invalid JSON: {e}", path.display())))?;
+    let objects = v
+        .get("objects")
+        .and_then(|o| o.as_array())
+        .ok_or_else(|| SegmentError::Invalid(format!("{}: no `objects` array", path.display())))?;
+    objects
+        .iter()
+        .enumerate()
+        .map(|(i, o)| {
+            o.get("name")
+                .and_then(|n| n.as_str())
+                .map(str::to_string)
+                .ok_or_else(|| {
+                    SegmentError::Invalid(format!(
+                        "{}: objects[{i}] has no string `name`",
+                        path.display()
+                    ))
+                })
+        })
+        .collect::<Result<Vec<_>, _>>()
+        .map(Some)
 }
 
 /// The instance mask of a single-object image: label 1 where alpha > 0.
@@ -236,9 +297,26 @@ fn read_frames(dir: &Path, t: &Transforms) -> Result<Vec<SegFrame>, SegmentError
             let camera = t.camera(i, image.width(), image.height()).ok_or_else(|| {
                 SegmentError::Invalid(format!("{}: frame {i} has no camera", path.display()))
             })?;
+            let mask_path = dir.join(format!("{}{}", entry.file_path, super::output::MASK_SUFFIX));
+            let mask = if mask_path.is_file() {
+                let m = image::open(&mask_path).map_err(|source| SegmentError::Image {
+                    path: mask_path.clone(),
+                    source,
+                })?;
+                if m.color() != image::ColorType::L8 {
+                    return Err(SegmentError::Invalid(format!(
+                        "{}: an instance mask must be 8-bit grayscale, found {:?}",
+                        mask_path.display(),
+                        m.color()
+                    )));
+                }
+                m.into_luma8()
+            } else {
+                mask_from_alpha(&image)
+            };
             Ok(SegFrame {
                 file_path: entry.file_path.clone(),
-                mask: mask_from_alpha(&image),
+                mask,
                 image,
                 camera,
                 object_views: Vec::new(),

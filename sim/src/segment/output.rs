@@ -13,6 +13,9 @@ use std::path::{Path, PathBuf};
 
 /// Version of the `segmentation.json` layout written by this module.
 pub const SEGMENTATION_VERSION: u32 = 1;
+/// Suffix that turns a frame's `file_path` into its instance mask's path
+/// (the capture layout's convention).
+pub const MASK_SUFFIX: &str = "_mask.png";
 /// File name of the segmentation summary inside the output folder.
 pub const SEGMENTATION_FILE: &str = "segmentation.json";
 
@@ -511,6 +514,14 @@ fn write_group(
                     path: path.clone(),
                     source,
                 })?;
+                // The capture layout's instance mask: `<file_path>_mask.png`.
+                let mask_path = tmp_dir.join(format!("{}{MASK_SUFFIX}", v.file_path));
+                v.mask
+                    .save(&mask_path)
+                    .map_err(|source| SegmentError::Image {
+                        path: mask_path,
+                        source,
+                    })?;
                 let k = v.camera.intrinsics;
                 Ok(Some(WrittenView {
                     size: v.image.dimensions(),
