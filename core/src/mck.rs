@@ -314,12 +314,11 @@ impl<'a> Tables<'a> {
             return Err(MckError::NoObjects);
         }
         let cells = best.len().min(u32::MAX as usize);
-        let object_capacity = if cells == 0 {
-            picked.len()
-        } else {
-            picked.len().min(choice.len() / cells)
-        }
-        .min(MAX_OBJECTS);
+        let object_capacity = choice
+            .len()
+            .checked_div(cells)
+            .map_or(picked.len(), |rows| rows.min(picked.len()))
+            .min(MAX_OBJECTS);
         if n > object_capacity {
             return Err(MckError::TooManyObjects {
                 objects: n,
