@@ -171,7 +171,10 @@ impl Device {
                     let line = text
                         .get(..span.start)
                         .map_or(0, |before| before.matches('\n').count());
-                    (toml_field(text, line, &message), format!(" (line {})", line + 1))
+                    (
+                        toml_field(text, line, &message),
+                        format!(" (line {})", line + 1),
+                    )
                 }
                 None => (String::new(), String::new()),
             };
@@ -198,7 +201,10 @@ impl Device {
             if v.is_finite() && v >= 0.0 {
                 Ok(())
             } else {
-                Err(bad(field, format!("must be a non-negative number of MB, got {v}")))
+                Err(bad(
+                    field,
+                    format!("must be a non-negative number of MB, got {v}"),
+                ))
             }
         };
         let positive = |field: &str, v: f64| {
@@ -224,7 +230,10 @@ impl Device {
         positive("throughput.load_mb_per_s", t.load_mb_per_s)?;
         positive("display.refresh_hz", self.display.refresh_hz)?;
         if self.display.width_px == 0 || self.display.height_px == 0 {
-            return Err(bad("display", "width_px and height_px must be positive".into()));
+            return Err(bad(
+                "display",
+                "width_px and height_px must be positive".into(),
+            ));
         }
         Ok(())
     }
@@ -254,7 +263,8 @@ fn toml_field(text: &str, line: usize, message: &str) -> String {
     let here = lines.get(line).map_or("", |l| l.trim());
     let header = |l: &str| {
         let l = l.trim();
-        (l.starts_with('[') && l.ends_with(']')).then(|| l.trim_matches(['[', ']']).trim().to_string())
+        (l.starts_with('[') && l.ends_with(']'))
+            .then(|| l.trim_matches(['[', ']']).trim().to_string())
     };
     let missing = message
         .strip_prefix("missing field `")
@@ -266,7 +276,10 @@ fn toml_field(text: &str, line: usize, message: &str) -> String {
         (Some(t), None) => return t,
         (None, None) => {
             let table = lines.iter().take(line).rev().find_map(|l| header(l));
-            (table, here.split('=').next().unwrap_or("").trim().to_string())
+            (
+                table,
+                here.split('=').next().unwrap_or("").trim().to_string(),
+            )
         }
     };
     match table {
@@ -295,21 +308,53 @@ mod tests {
     #[test]
     fn errors_name_the_field() {
         let text = include_str!("../devices/pixel4.toml");
-        let e = Device::from_toml_str(&text.replace("mac_per_s = 2.0e11", "mac_per_s = -1.0"), "x.toml")
-            .unwrap_err();
-        assert_eq!(e.to_string(), "x.toml: throughput.mac_per_s: must be a positive number, got -1");
-        let e = Device::from_toml_str(&format!("{text}\n[extra]\nfoo = 1\n"), "x.toml").unwrap_err();
-        assert!(e.to_string().starts_with("x.toml: extra: unknown field `extra`"), "{e}");
-        let e = Device::from_toml_str(&text.replace("budget_mb = 150.0", "budget_mb = \"lots\""), "x.toml")
-            .unwrap_err();
+        let e = Device::from_toml_str(
+            &text.replace("mac_per_s = 2.0e11", "mac_per_s = -1.0"),
+            "x.toml",
+        )
+        .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "x.toml: throughput.mac_per_s: must be a positive number, got -1"
+        );
+        let e =
+            Device::from_toml_str(&format!("{text}\n[extra]\nfoo = 1\n"), "x.toml").unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("x.toml: extra: unknown field `extra`"),
+            "{e}"
+        );
+        let e = Device::from_toml_str(
+            &text.replace("budget_mb = 150.0", "budget_mb = \"lots\""),
+            "x.toml",
+        )
+        .unwrap_err();
         assert!(e.to_string().starts_with("x.toml: budget_mb: "), "{e}");
-        let e = Device::from_toml_str(&text.replace("budget_mb = 150.0", ""), "x.toml").unwrap_err();
-        assert!(e.to_string().starts_with("x.toml: budget_mb: missing field `budget_mb`"), "{e}");
-        let e = Device::from_toml_str(&text.replace("mac_per_s = 2.0e11", ""), "x.toml").unwrap_err();
-        assert!(e.to_string().starts_with("x.toml: throughput.mac_per_s: missing field"), "{e}");
+        let e =
+            Device::from_toml_str(&text.replace("budget_mb = 150.0", ""), "x.toml").unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("x.toml: budget_mb: missing field `budget_mb`"),
+            "{e}"
+        );
+        let e =
+            Device::from_toml_str(&text.replace("mac_per_s = 2.0e11", ""), "x.toml").unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("x.toml: throughput.mac_per_s: missing field"),
+            "{e}"
+        );
         let e = Device::from_toml_str(&text.replace("quads_per_s", "quads"), "x.toml").unwrap_err();
-        assert!(e.to_string().starts_with("x.toml: throughput.quads: unknown field `quads`"), "{e}");
+        assert!(
+            e.to_string()
+                .starts_with("x.toml: throughput.quads: unknown field `quads`"),
+            "{e}"
+        );
         let e = Device::lookup("nosuch").unwrap_err();
-        assert!(e.to_string().contains("not a built-in device (iphone13, pixel4)"), "{e}");
+        assert!(
+            e.to_string()
+                .contains("not a built-in device (iphone13, pixel4)"),
+            "{e}"
+        );
     }
 }

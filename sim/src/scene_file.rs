@@ -198,7 +198,8 @@ impl SceneObject {
         obj.insert("name".into(), Value::String(self.name.clone()));
         match &self.profile {
             Some(p) => {
-                let params = |m: &ModelParams| serde_json::json!({"k": m.k, "a": m.a, "b": m.b, "m": m.m});
+                let params =
+                    |m: &ModelParams| serde_json::json!({"k": m.k, "a": m.a, "b": m.b, "m": m.m});
                 obj.insert(
                     "profile".into(),
                     serde_json::json!({
@@ -275,9 +276,12 @@ impl Parser<'_> {
         path: &str,
         default_name: Option<&str>,
     ) -> Result<SceneObject, SceneError> {
-        let obj = v
-            .as_object()
-            .ok_or_else(|| self.err(path, "expected an object with \"name\" and \"configs\" or \"profile\""))?;
+        let obj = v.as_object().ok_or_else(|| {
+            self.err(
+                path,
+                "expected an object with \"name\" and \"configs\" or \"profile\"",
+            )
+        })?;
         let name = match (obj.get("name"), default_name) {
             (None, Some(d)) => d.to_string(),
             (None, None) => return Err(self.err(&format!("{path}.name"), "missing")),
@@ -321,21 +325,27 @@ impl Parser<'_> {
             .as_array()
             .ok_or_else(|| self.err(path, "expected a list of configurations"))?;
         if list.is_empty() {
-            return Err(self.err(path, "empty list: an object needs at least one configuration"));
+            return Err(self.err(
+                path,
+                "empty list: an object needs at least one configuration",
+            ));
         }
         if list.len() > MAX_CONFIGS {
             return Err(self.err(
                 path,
-                format!("{} configurations; at most {MAX_CONFIGS} are supported", list.len()),
+                format!(
+                    "{} configurations; at most {MAX_CONFIGS} are supported",
+                    list.len()
+                ),
             ));
         }
         let mut seen: HashMap<(u32, u32), usize> = HashMap::new();
         let mut out = Vec::with_capacity(list.len());
         for (j, item) in list.iter().enumerate() {
             let cpath = format!("{path}[{j}]");
-            let c = item
-                .as_object()
-                .ok_or_else(|| self.err(&cpath, "expected an object with g, p, size_bytes, quality"))?;
+            let c = item.as_object().ok_or_else(|| {
+                self.err(&cpath, "expected an object with g, p, size_bytes, quality")
+            })?;
             let g = self.positive_int(c, &cpath, "g")?;
             let p = self.positive_int(c, &cpath, "p")?;
             let size = self.size_bytes(c, &cpath)?;
@@ -356,19 +366,35 @@ impl Parser<'_> {
         Ok(out)
     }
 
-    fn field<'v>(&self, obj: &'v Map<String, Value>, path: &str, key: &str) -> Result<&'v Value, SceneError> {
+    fn field<'v>(
+        &self,
+        obj: &'v Map<String, Value>,
+        path: &str,
+        key: &str,
+    ) -> Result<&'v Value, SceneError> {
         obj.get(key)
             .ok_or_else(|| self.err(&format!("{path}.{key}"), "missing"))
     }
 
-    fn number(&self, obj: &Map<String, Value>, path: &str, key: &str) -> Result<(f64, Number), SceneError> {
+    fn number(
+        &self,
+        obj: &Map<String, Value>,
+        path: &str,
+        key: &str,
+    ) -> Result<(f64, Number), SceneError> {
         match self.field(obj, path, key)? {
             Value::Number(n) => {
                 let x = n.as_f64().ok_or_else(|| {
-                    self.err(&format!("{path}.{key}"), format!("not a finite number ({n})"))
+                    self.err(
+                        &format!("{path}.{key}"),
+                        format!("not a finite number ({n})"),
+                    )
                 })?;
                 if !x.is_finite() {
-                    return Err(self.err(&format!("{path}.{key}"), format!("not a finite number ({n})")));
+                    return Err(self.err(
+                        &format!("{path}.{key}"),
+                        format!("not a finite number ({n})"),
+                    ));
                 }
                 Ok((x, n.clone()))
             }
@@ -379,7 +405,12 @@ impl Parser<'_> {
         }
     }
 
-    fn positive_int(&self, obj: &Map<String, Value>, path: &str, key: &str) -> Result<u32, SceneError> {
+    fn positive_int(
+        &self,
+        obj: &Map<String, Value>,
+        path: &str,
+        key: &str,
+    ) -> Result<u32, SceneError> {
         let (x, n) = self.number(obj, path, key)?;
         let fpath = format!("{path}.{key}");
         if x < 0.0 {
@@ -407,7 +438,10 @@ impl Parser<'_> {
         let (x, n) = self.number(obj, path, "quality")?;
         let fpath = format!("{path}.quality");
         if x < 0.0 {
-            return Err(self.err(&fpath, format!("negative value {n}; SSIM must be in [0, 1]")));
+            return Err(self.err(
+                &fpath,
+                format!("negative value {n}; SSIM must be in [0, 1]"),
+            ));
         }
         if x > 1.0 {
             return Err(self.err(&fpath, format!("value {n} above 1; SSIM must be in [0, 1]")));
@@ -450,7 +484,9 @@ impl Parser<'_> {
                     .as_u64()
                     .and_then(|v| u32::try_from(v).ok())
                     .filter(|&v| v > 0)
-                    .ok_or_else(|| self.err(&ipath, format!("must be a positive integer, got {item}")))?;
+                    .ok_or_else(|| {
+                        self.err(&ipath, format!("must be a positive integer, got {item}"))
+                    })?;
                 if out.contains(&v) {
                     return Err(self.err(&ipath, format!("duplicate value {v}")));
                 }
@@ -471,7 +507,12 @@ impl Parser<'_> {
                 ),
             ));
         }
-        Ok(Profile { size, quality, g, p })
+        Ok(Profile {
+            size,
+            quality,
+            g,
+            p,
+        })
     }
 
     fn evaluate(&self, profile: &Profile, path: &str) -> Result<Vec<ConfigEntry>, SceneError> {
@@ -535,15 +576,21 @@ mod tests {
     fn errors_name_file_and_field() {
         let base = |cfg: &str| format!(r#"{{"objects": [{{"name": "a", "configs": [{cfg}]}}]}}"#);
         assert_eq!(
-            err(&base(r#"{"g": 1, "p": 1, "size_bytes": -3, "quality": 0.5}"#)),
+            err(&base(
+                r#"{"g": 1, "p": 1, "size_bytes": -3, "quality": 0.5}"#
+            )),
             "scene.json: objects[0].configs[0].size_bytes: negative value -3"
         );
         assert_eq!(
-            err(&base(r#"{"g": 1, "p": 1, "size_bytes": 3, "quality": 1.5}"#)),
+            err(&base(
+                r#"{"g": 1, "p": 1, "size_bytes": 3, "quality": 1.5}"#
+            )),
             "scene.json: objects[0].configs[0].quality: value 1.5 above 1; SSIM must be in [0, 1]"
         );
         assert_eq!(
-            err(&base(r#"{"g": 1.5, "p": 1, "size_bytes": 3, "quality": 0.5}"#)),
+            err(&base(
+                r#"{"g": 1.5, "p": 1, "size_bytes": 3, "quality": 0.5}"#
+            )),
             "scene.json: objects[0].configs[0].g: must be a positive integer, got 1.5"
         );
         assert_eq!(
@@ -587,7 +634,10 @@ mod tests {
         let c = &s.objects[0].configs;
         assert_eq!(c.len(), 4);
         // S(2,1) = 0.5·8·1 + 1000 = 1004; Q(2,1) = 0.95 − 100/8 < 0 → 0.
-        assert_eq!((c[0].g, c[0].p, c[0].size, c[0].quality), (2, 1, Bytes(1004), 0.0));
+        assert_eq!(
+            (c[0].g, c[0].p, c[0].size, c[0].quality),
+            (2, 1, Bytes(1004), 0.0)
+        );
         // S(4,3) = 0.5·64·9 + 1000 = 1288; Q = 0.95 − 100/576.
         assert_eq!(c[3].size, Bytes(1288));
         assert!((c[3].quality - (0.95 - 100.0 / 576.0)).abs() < 1e-12);
