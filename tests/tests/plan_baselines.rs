@@ -13,8 +13,11 @@ fn example(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// One configuration: (g, p, size in bytes, quality).
+type Cfg = (u32, u32, u64, f64);
+
 /// A scene from (name, [(g, p, size, quality)]).
-fn scene(objects: &[(&str, &[(u32, u32, u64, f64)])]) -> Scene {
+fn scene(objects: &[(&str, &[Cfg])]) -> Scene {
     Scene {
         objects: objects
             .iter()
@@ -122,16 +125,14 @@ fn block_uses_128_17_and_reports_when_it_does_not_fit() {
 #[test]
 fn single_nerf_derived_and_measured() {
     // 8 objects: 128/∛8 = 64 voxels per axis each, p = 17.
-    let cfgs: &[(u32, u32, u64, f64)] = &[
+    let cfgs: &[Cfg] = &[
         (32, 17, 10, 0.5),
         (64, 17, 20, 0.7),
         (96, 17, 30, 0.8),
         (128, 17, 40, 0.9),
     ];
-    let objects: Vec<(String, &[(u32, u32, u64, f64)])> =
-        (0..8).map(|i| (format!("o{i}"), cfgs)).collect();
-    let named: Vec<(&str, &[(u32, u32, u64, f64)])> =
-        objects.iter().map(|(n, c)| (n.as_str(), *c)).collect();
+    let objects: Vec<(String, &[Cfg])> = (0..8).map(|i| (format!("o{i}"), cfgs)).collect();
+    let named: Vec<(&str, &[Cfg])> = objects.iter().map(|(n, c)| (n.as_str(), *c)).collect();
     let mut s = scene(&named);
     let p = plan(Method::Single, &s, bytes_budget(1000)).unwrap();
     assert_eq!(p.objects.len(), 1);
@@ -175,13 +176,12 @@ fn slsqp_needs_a_grid_or_a_profile() {
 
 #[test]
 fn brute_force_refuses_huge_searches() {
-    let cfgs: Vec<(u32, u32, u64, f64)> = (1..=45)
+    let cfgs: Vec<Cfg> = (1..=45)
         .map(|g| (g, 17, g as u64, g as f64 / 100.0))
         .collect();
-    let objects: Vec<(String, &[(u32, u32, u64, f64)])> =
+    let objects: Vec<(String, &[Cfg])> =
         (0..6).map(|i| (format!("o{i}"), cfgs.as_slice())).collect();
-    let named: Vec<(&str, &[(u32, u32, u64, f64)])> =
-        objects.iter().map(|(n, c)| (n.as_str(), *c)).collect();
+    let named: Vec<(&str, &[Cfg])> = objects.iter().map(|(n, c)| (n.as_str(), *c)).collect();
     let e = plan(Method::Brute, &scene(&named), bytes_budget(1000)).unwrap_err();
     assert!(matches!(e, PlanError::BruteTooLarge { .. }), "{e}");
 }
