@@ -30,6 +30,8 @@ mod greedy;
 mod problem;
 mod slsqp;
 
+pub use fixed::effective_grid;
+
 use crate::scene_file::Scene;
 use nerflex_core::units::{Bytes, QualitySum};
 use serde::{Deserialize, Serialize};
@@ -201,7 +203,8 @@ pub struct PlannedObject {
     pub size_bytes: u64,
     /// Predicted SSIM.
     pub quality: f64,
-    /// Index into the scene object's `configs` (`None` for a derived Single-NeRF).
+    /// Index into the scene object's `configs` (for Single-NeRF: into the
+    /// scene's `single.configs`, `None` when derived). Not serialized.
     #[serde(skip)]
     pub config_index: Option<usize>,
 }
@@ -262,7 +265,7 @@ pub enum PlanError {
     },
     /// The cheapest plan fits in bytes but not with sizes rounded up to the unit.
     #[error(
-        "infeasible at this unit: the cheapest plan needs {}, {} with each size rounded up to the {}-byte unit, over the budget of {}: use a finer unit",
+        "infeasible at this unit: the cheapest plan needs {}, {} with each size rounded up to the {}-byte unit, over the budget of {}: use a finer unit (`--unit-bytes` on the command line)",
         mb(*cheapest_total), mb(*cheapest_rounded), unit.0, mb(*budget)
     )]
     UnitTooCoarse {

@@ -133,7 +133,8 @@ fn nearest(o: &Obj, m: &Model, g: f64, p: f64, max_size: f64) -> Option<usize> {
     o.cands
         .iter()
         .enumerate()
-        .filter(|(_, c)| c.size.0 as f64 <= max_size)
+        // Profile sizes were rounded up to whole bytes: compare likewise.
+        .filter(|(_, c)| c.size.0 as f64 <= max_size.ceil())
         .min_by(|(_, a), (_, b)| {
             key(a)
                 .total_cmp(&key(b))
