@@ -94,7 +94,11 @@ impl ViewDir {
 
     /// The raw Q2.14 bits.
     pub fn bits(&self) -> [i16; 3] {
-        [self.0[0].to_bits(), self.0[1].to_bits(), self.0[2].to_bits()]
+        [
+            self.0[0].to_bits(),
+            self.0[1].to_bits(),
+            self.0[2].to_bits(),
+        ]
     }
 
     /// Normalises `d` and rounds it to Q2.14; `None` if `d` is zero or not
@@ -273,7 +277,10 @@ impl fmt::Display for ShaderError {
                 param: Param::Bias { index },
             } => write!(f, "{layer}_bias[{index}] is not finite"),
             ShaderError::Unrepresentable { layer, what } => {
-                write!(f, "layer {layer} is not representable in fixed point: {what}")
+                write!(
+                    f,
+                    "layer {layer} is not representable in fixed point: {what}"
+                )
             }
         }
     }
@@ -549,8 +556,18 @@ mod tests {
         let m = FixedMlp::from_weights(&w).unwrap();
         let mut worst = 0.0f64;
         for i in 0..4000u32 {
-            let f0 = [(i * 37 % 255 + 1) as u8, (i * 11) as u8, (i * 7) as u8, (i * 3) as u8];
-            let f1 = [(i * 5) as u8, (i * 13) as u8, (i * 17) as u8, (i * 19) as u8];
+            let f0 = [
+                (i * 37 % 255 + 1) as u8,
+                (i * 11) as u8,
+                (i * 7) as u8,
+                (i * 3) as u8,
+            ];
+            let f1 = [
+                (i * 5) as u8,
+                (i * 13) as u8,
+                (i * 17) as u8,
+                (i * 19) as u8,
+            ];
             let th = i as f64 * 0.37;
             let ph = i as f64 * 0.11;
             let d = [th.cos() * ph.sin(), th.sin() * ph.sin(), ph.cos()];
@@ -605,16 +622,26 @@ mod tests {
     #[test]
     fn arbitrary_tables_never_panic() {
         let mut m = FixedMlp::from_weights(&weights(5, 1.0)).unwrap();
-        m.l0.weights.iter_mut().flatten().for_each(|v| *v = i32::MAX);
+        m.l0.weights
+            .iter_mut()
+            .flatten()
+            .for_each(|v| *v = i32::MAX);
         m.l1.bias.iter_mut().for_each(|v| *v = i64::MIN);
         m.l2.weight_frac = 255;
-        let _ = m.shade([255; 4], [0; 4], ViewDir::from_bits([i16::MAX, i16::MIN, 0]));
+        let _ = m.shade(
+            [255; 4],
+            [0; 4],
+            ViewDir::from_bits([i16::MAX, i16::MIN, 0]),
+        );
     }
 
     #[test]
     fn zero_weights_give_mid_grey_and_rust_source_lists_tables() {
         let m = FixedMlp::from_weights(&MlpWeights::ZERO).unwrap();
-        assert_eq!(m.shade([1, 2, 3, 4], [5, 6, 7, 8], ViewDir::default()), [128; 3]);
+        assert_eq!(
+            m.shade([1, 2, 3, 4], [5, 6, 7, 8], ViewDir::default()),
+            [128; 3]
+        );
         let mut s = std::string::String::new();
         m.write_rust(&mut s, "MLP").unwrap();
         assert!(s.starts_with("pub const MLP: FixedMlp = FixedMlp {"));
@@ -625,7 +652,12 @@ mod tests {
     fn f32_and_f64_agree() {
         let w = weights(9, 1.2);
         for i in 0..500u32 {
-            let f0 = [(i % 255 + 1) as u8, (i * 3) as u8, (i * 7) as u8, (i * 5) as u8];
+            let f0 = [
+                (i % 255 + 1) as u8,
+                (i * 3) as u8,
+                (i * 7) as u8,
+                (i * 5) as u8,
+            ];
             let f1 = [(i * 9) as u8, (i * 2) as u8, (i * 4) as u8, (i * 6) as u8];
             let d = [0.6f32, -0.64, 0.48];
             let a = shade_f32(&w, f0, f1, d);
