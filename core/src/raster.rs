@@ -352,7 +352,7 @@ impl View {
     }
 
     /// The unit world-frame view direction through the centre of pixel
-    /// `(px, py)`, in Q2.14 — integers only.
+    /// `(px, py)`, in Q2.30 — integers only.
     #[inline]
     pub fn pixel_dir(&self, px: u32, py: u32) -> ViewDir {
         let (px, py) = (i64::from(px.min(MAX_SIDE)), i64::from(py.min(MAX_SIDE)));
@@ -373,13 +373,13 @@ impl View {
             return ViewDir::default();
         }
         let q = |v: i64| {
-            let n = v << 14;
+            let n = v << 30; // |v| < 2^31: fits
             let r = if n >= 0 {
                 (n + len / 2) / len
             } else {
                 (n - len / 2) / len
             };
-            r.clamp(i16::MIN as i64, i16::MAX as i64) as i16
+            r.clamp(i32::MIN as i64, i32::MAX as i64) as i32
         };
         ViewDir::from_bits(d.map(q))
     }

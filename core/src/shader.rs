@@ -10,16 +10,18 @@
 //! [`ViewDir`] is that world-frame direction.
 //!
 //! ## Fixed-point scheme
-//! - Activations (inputs, hidden values, output logits) are `i32` in Q16.
-//! - Each layer's weights are `i32` scaled by `2^weight_frac`, biases `i64`
-//!   in Q(16 + `weight_frac`); products accumulate in `i64` and one rounding
-//!   right shift by `weight_frac` brings the sum back to Q16.
+//! - Activations are `i32`. The 11 inputs and the 3 output logits are Q24;
+//!   each hidden layer's format Q`out_frac` (≤ 24) is the finest in which
+//!   its worst-case value (bounded from the weights, for every possible
+//!   input) fits in `i32`.
+//! - Each layer's weights are `i32` scaled by `2^weight_frac`, its biases
+//!   `i64` at the accumulator's scale; products accumulate in `i64` and one
+//!   rounding right shift brings the sum to the output format.
 //! - `weight_frac` is chosen per layer from that layer's own weights
-//!   ([`FixedMlp::from_weights`]): the largest scale for which every weight
-//!   fits in `i32` and the worst-case accumulator (from the input bounds and
-//!   the weights' absolute values) fits in `i64`. Hidden activations must
-//!   fit in Q16 `i32` for every possible input (|h| < 32768), otherwise the
-//!   weights are rejected as unrepresentable. So no input can overflow.
+//!   ([`FixedMlp::from_weights`]): the largest scale (≤ 2⁴⁰) for which every
+//!   weight fits in `i32` and the worst-case accumulator fits in `i64`, so
+//!   any `mlp.json` converts and no input can overflow. Weights are rejected
+//!   only if non-finite or if a hidden activation could exceed 2³¹.
 //! - The sigmoid is the exact 8-bit rounding of σ(z) by a threshold table
 //!   ([`sigmoid_u8`]).
 //!
@@ -30,8 +32,8 @@ mod sigmoid;
 
 use core::fmt;
 
-pub use fixed::types::I2F14;
-pub use sigmoid::{sigmoid_u8, THRESHOLDS_Q16};
+pub use fixed::types::I2F30;
+pub use sigmoid::{sigmoid_u8, THRESHOLDS_Q24};
 
 /// MLP inputs: 8 features + 3 direction components.
 pub const INPUTS: usize = 11;
@@ -41,8 +43,9 @@ pub const HIDDEN: usize = 16;
 pub const OUTPUTS: usize = 3;
 /// Multiply-adds per shaded pixel: 11·16 + 16·16 + 16·3 = 480.
 pub const MACS_PER_PIXEL: usize = INPUTS * HIDDEN + HIDDEN * HIDDEN + HIDDEN * OUTPUTS;
-/// Fractional bits of every activation (Q16).
-pub const ACT_FRAC: u32 = 16;
+/// Fractional bits of the MLP inputs and output logits (Q24); also the
+/// finest hidden-activation format.
+pub const ACT_FRAC: u8 = 24;
 /// Largest per-layer weight scale tried (`2^40`): beyond it tiny weights gain nothing.
 pub const MAX_WEIGHT_FRAC: u8 = 40;
 
@@ -77,23 +80,26 @@ impl MlpWeights {
     };
 }
 
-/// A view direction in the z-up world frame, each component Q2.14
-/// (`bits / 16384`, range [−2, 2)); normally of unit length.
+/// A view direction in the z-up world frame, each component Q2.30
+/// (`bits / 2³⁰`, range [−2, 2)); normally of unit length.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct ViewDir(pub [I2F14; 3]);
+pub struct ViewDir(pub [I2F30; 3]);
+
+/// `1.0` in a [`ViewDir`] component.
+pub const DIR_ONE: i32 = 1 << 30;
 
 impl ViewDir {
-    /// From raw Q2.14 bits.
-    pub const fn from_bits(bits: [i16; 3]) -> Self {
+    /// From raw Q2.30 bits.
+    pub const fn from_bits(bits: [i32; 3]) -> Self {
         Self([
-            I2F14::from_bits(bits[0]),
-            I2F14::from_bits(bits[1]),
-            I2F14::from_bits(bits[2]),
+            I2F30::from_bits(bits[0]),
+            I2F30::from_bits(bits[1]),
+            I2F30::from_bits(bits[2]),
         ])
     }
 
-    /// The raw Q2.14 bits.
-    pub fn bits(&self) -> [i16; 3] {
+    /// The raw Q2.30 bits.
+    pub fn bits(&self) -> [i32; 3] {
         [
             self.0[0].to_bits(),
             self.0[1].to_bits(),
@@ -101,42 +107,47 @@ impl ViewDir {
         ]
     }
 
-    /// Normalises `d` and rounds it to Q2.14; `None` if `d` is zero or not
+    /// Normalises `d` and rounds it to Q2.30; `None` if `d` is zero or not
     /// finite. (Set-up code only: uses floats.)
     pub fn from_f64(d: [f64; 3]) -> Option<Self> {
         let len = libm::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
         if !(len.is_finite() && len > 0.0) {
             return None;
         }
-        let q = |v: f64| libm::round(v / len * 16384.0) as i16; // |v/len| ≤ 1: fits
+        let q = |v: f64| libm::round(v / len * DIR_ONE as f64) as i32; // |v/len| ≤ 1: fits
         Some(Self::from_bits([q(d[0]), q(d[1]), q(d[2])]))
     }
 
     /// The direction as `f64` (not renormalised).
     pub fn to_f64(&self) -> [f64; 3] {
-        let b = self.bits();
-        [
-            b[0] as f64 / 16384.0,
-            b[1] as f64 / 16384.0,
-            b[2] as f64 / 16384.0,
-        ]
+        self.bits().map(|b| b as f64 / DIR_ONE as f64)
     }
 }
 
-/// One layer in fixed point: `out = (bias + Σ in·weights) >> weight_frac`,
-/// inputs and outputs in Q16.
+/// One layer in fixed point: `out = (bias + Σ in·weights) >> shift`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct FixedLayer<const I: usize, const O: usize> {
     /// `round(W[in][out] · 2^weight_frac)`.
     pub weights: [[i32; O]; I],
-    /// `round(b[out] · 2^(16 + weight_frac))`.
+    /// `round(b[out] · 2^(in_frac + weight_frac))`.
     pub bias: [i64; O],
-    /// Fractional bits of the weights (also the accumulator's right shift).
+    /// Fractional bits of the weights.
     pub weight_frac: u8,
+    /// Fractional bits of the outputs (Q`out_frac`).
+    pub out_frac: u8,
+    /// Rounding right shift of the accumulator: `in_frac + weight_frac − out_frac`.
+    pub shift: u8,
+}
+
+/// What [`FixedLayer::quantize`] needs to know about a layer's inputs.
+struct Inputs<'a, const I: usize> {
+    frac: u8,
+    /// Bound of `|input i|` in Q`frac`, for every possible input.
+    bound: &'a [i64; I],
 }
 
 impl<const I: usize, const O: usize> FixedLayer<I, O> {
-    /// Accumulates `bias + Σ x·W` and shifts back to Q16 with rounding.
+    /// Accumulates `bias + Σ x·W` and shifts to the output format with rounding.
     #[inline(always)]
     fn forward(&self, x: &[i32; I]) -> [i64; O] {
         let mut acc = self.bias;
@@ -146,23 +157,23 @@ impl<const I: usize, const O: usize> FixedLayer<I, O> {
                 *a = a.wrapping_add(xi.wrapping_mul(w as i64));
             }
         }
-        let s = u32::from(self.weight_frac.min(62));
+        let s = u32::from(self.shift.min(62));
         let half = (1i64 << s) >> 1;
-        for a in acc.iter_mut() {
-            *a = a.wrapping_add(half) >> s;
-        }
-        acc
+        acc.map(|a| a.wrapping_add(half) >> s)
     }
 
-    /// Quantises one layer. `in_bound[i]` bounds `|input i|` in Q16 for every
-    /// possible input; returns the layer and (for the caller's next layer)
-    /// the Q16 bound of each pre-activation.
+    /// Quantises one layer. `out_frac`: wanted output format (≤ 24); for a
+    /// hidden layer (`saturate == false`) it is lowered until the worst-case
+    /// output fits `i32`. Returns the layer and the Q`out_frac` bound of each
+    /// output.
     fn quantize(
         layer: u8,
         w: &[[f32; O]; I],
         b: &[f32; O],
-        in_bound: &[i64; I],
-    ) -> Result<(Self, [i128; O]), ShaderError> {
+        input: Inputs<I>,
+        out_frac: u8,
+        saturate: bool,
+    ) -> Result<(Self, [i64; O]), ShaderError> {
         for (i, row) in w.iter().enumerate() {
             for (o, v) in row.iter().enumerate() {
                 if !v.is_finite() {
@@ -183,14 +194,11 @@ impl<const I: usize, const O: usize> FixedLayer<I, O> {
         }
         const ACC_LIMIT: i128 = 1 << 62; // leaves room for the rounding add
         'scale: for frac in (0..=MAX_WEIGHT_FRAC).rev() {
+            let acc_frac = i32::from(frac) + i32::from(input.frac);
             let scale = libm::ldexp(1.0, i32::from(frac));
-            let bias_scale = libm::ldexp(1.0, i32::from(frac) + ACT_FRAC as i32);
-            let mut out = Self {
-                weights: [[0; O]; I],
-                bias: [0; O],
-                weight_frac: frac,
-            };
-            for (qrow, row) in out.weights.iter_mut().zip(w.iter()) {
+            let bias_scale = libm::ldexp(1.0, acc_frac);
+            let mut weights = [[0i32; O]; I];
+            for (qrow, row) in weights.iter_mut().zip(w.iter()) {
                 for (q, &v) in qrow.iter_mut().zip(row.iter()) {
                     let r = libm::round(v as f64 * scale);
                     if r.abs() > i32::MAX as f64 {
@@ -199,7 +207,8 @@ impl<const I: usize, const O: usize> FixedLayer<I, O> {
                     *q = r as i32;
                 }
             }
-            for (q, &v) in out.bias.iter_mut().zip(b.iter()) {
+            let mut bias = [0i64; O];
+            for (q, &v) in bias.iter_mut().zip(b.iter()) {
                 let r = libm::round(v as f64 * bias_scale);
                 if r.abs() >= ACC_LIMIT as f64 {
                     continue 'scale;
@@ -207,20 +216,45 @@ impl<const I: usize, const O: usize> FixedLayer<I, O> {
                 *q = r as i64;
             }
             // Worst-case |accumulator| of each output over all inputs.
-            let mut bound = [0i128; O];
-            for (o, bo) in bound.iter_mut().enumerate() {
-                let mut s = out.bias.get(o).map_or(0, |v| i128::from(*v).abs());
-                for (row, &xb) in out.weights.iter().zip(in_bound.iter()) {
+            let mut acc_bound = [0i128; O];
+            for (o, ab) in acc_bound.iter_mut().enumerate() {
+                let mut s = bias.get(o).map_or(0, |v| i128::from(*v).abs());
+                for (row, &xb) in weights.iter().zip(input.bound.iter()) {
                     let wv = row.get(o).map_or(0, |v| i128::from(*v).abs());
                     s += wv * i128::from(xb);
                 }
                 if s >= ACC_LIMIT {
                     continue 'scale;
                 }
-                // Q16 bound after the rounding shift.
-                *bo = (s >> frac) + 1;
+                *ab = s;
             }
-            return Ok((out, bound));
+            let max_acc = acc_bound.iter().copied().max().unwrap_or(0);
+            // Finest output format ≤ out_frac (and ≤ the accumulator's) whose
+            // worst case fits i32; the logits may saturate instead.
+            let mut of = out_frac.min(acc_frac as u8);
+            let bound_at = |of: u8| (max_acc >> (acc_frac - i32::from(of))) + 1;
+            while !saturate && bound_at(of) > i32::MAX as i128 {
+                if of == 0 {
+                    return Err(ShaderError::Unrepresentable {
+                        layer,
+                        what: "a hidden activation can exceed 2^31",
+                    });
+                }
+                of -= 1;
+            }
+            let shift = (acc_frac - i32::from(of)) as u8;
+            if shift > 62 {
+                continue 'scale; // keep the rounding shift within i64
+            }
+            let out_bound = acc_bound.map(|a| ((a >> shift) + 1).min(i64::MAX as i128) as i64);
+            let layer = Self {
+                weights,
+                bias,
+                weight_frac: frac,
+                out_frac: of,
+                shift,
+            };
+            return Ok((layer, out_bound));
         }
         Err(ShaderError::Unrepresentable {
             layer,
@@ -279,7 +313,7 @@ impl fmt::Display for ShaderError {
             ShaderError::Unrepresentable { layer, what } => {
                 write!(
                     f,
-                    "layer {layer} is not representable in fixed point: {what}"
+                    "layer {layer} ({layer}_weights, {layer}_bias) is not representable in fixed point: {what}"
                 )
             }
         }
@@ -289,7 +323,7 @@ impl fmt::Display for ShaderError {
 impl core::error::Error for ShaderError {}
 
 /// The fixed-point MLP: plain integer tables, so firmware can embed one as
-/// a `const` (see [`FixedMlp::write_rust`]).
+/// a `const` (see [`FixedMlp::write_rust`]). Inputs Q24, logits Q24.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct FixedMlp {
     /// 11 → 16, ReLU.
@@ -300,18 +334,19 @@ pub struct FixedMlp {
     pub l2: FixedLayer<HIDDEN, OUTPUTS>,
 }
 
-/// `round(n · 65536 / 255)` for `n` in 0..=510 (exact: 255 is odd, no ties).
+/// `round(n · 2²⁴ / 255)` for `n` in 0..=510 (exact: 255 is odd, no ties).
 #[inline(always)]
-fn q16_of_255ths(n: u32) -> i32 {
-    ((n * 65536 + 127) / 255) as i32
+fn q24_of_255ths(n: u32) -> i32 {
+    ((u64::from(n) * (1 << 24) + 127) / 255) as i32
 }
 
-/// The 11 Q16 inputs of the MLP.
+/// The 11 Q24 inputs of the MLP.
 #[inline(always)]
 fn fixed_inputs(feat0: [u8; 4], feat1: [u8; 4], dir: ViewDir) -> [i32; INPUTS] {
-    let rgb = |t: u8| q16_of_255ths(u32::from(t));
-    let alpha = |t: u8| q16_of_255ths(2 * u32::from(t)) - 65536;
-    let d = dir.bits();
+    let rgb = |t: u8| q24_of_255ths(u32::from(t));
+    let alpha = |t: u8| q24_of_255ths(2 * u32::from(t)) - (1 << 24);
+    // Q30 → Q24 with rounding.
+    let d = dir.bits().map(|b| (b >> 6) + ((b >> 5) & 1));
     [
         rgb(feat0[0]),
         rgb(feat0[1]),
@@ -321,58 +356,54 @@ fn fixed_inputs(feat0: [u8; 4], feat1: [u8; 4], dir: ViewDir) -> [i32; INPUTS] {
         rgb(feat1[1]),
         rgb(feat1[2]),
         alpha(feat1[3]),
-        i32::from(d[0]) << 2,
-        i32::from(d[1]) << 2,
-        i32::from(d[2]) << 2,
+        d[0],
+        d[1],
+        d[2],
     ]
 }
 
 #[inline(always)]
-fn relu_q16<const N: usize>(z: [i64; N]) -> [i32; N] {
+fn relu<const N: usize>(z: [i64; N]) -> [i32; N] {
     // Clamping is a no-op for weights built by `from_weights` (bounded).
     z.map(|v| v.clamp(0, i32::MAX as i64) as i32)
 }
 
 impl FixedMlp {
-    /// Quantises a weight set, choosing each layer's scale from its weights.
+    /// Quantises a weight set, choosing each layer's scales from its weights.
     ///
     /// Errors for non-finite weights and for weights whose hidden
-    /// activations could leave the Q16 `i32` range (|h| ≥ 32768) for some input.
+    /// activations could exceed 2³¹ for some input.
     pub fn from_weights(w: &MlpWeights) -> Result<Self, ShaderError> {
-        // Features decode to [−1, 1] (65536 in Q16); a ViewDir component is
-        // at most 2 in magnitude (131072) whatever its bits.
-        let mut in0 = [65536i64; INPUTS];
+        // Features decode to [−1, 1]; a ViewDir component is below 2 in
+        // magnitude whatever its bits (Q2.30).
+        let one = 1i64 << ACT_FRAC;
+        let mut in0 = [one; INPUTS];
         for v in in0.iter_mut().skip(8) {
-            *v = 131072;
+            *v = 2 * one;
         }
-        let (l0, b0) = FixedLayer::quantize(0, &w.w0, &w.b0, &in0)?;
-        let in1 = Self::hidden_bound(0, &b0)?;
-        let (l1, b1) = FixedLayer::quantize(1, &w.w1, &w.b1, &in1)?;
-        let in2 = Self::hidden_bound(1, &b1)?;
-        let (l2, _) = FixedLayer::quantize(2, &w.w2, &w.b2, &in2)?;
+        let input = Inputs {
+            frac: ACT_FRAC,
+            bound: &in0,
+        };
+        let (l0, b1) = FixedLayer::quantize(0, &w.w0, &w.b0, input, ACT_FRAC, false)?;
+        let input = Inputs {
+            frac: l0.out_frac,
+            bound: &b1,
+        };
+        let (l1, b2) = FixedLayer::quantize(1, &w.w1, &w.b1, input, ACT_FRAC, false)?;
+        let input = Inputs {
+            frac: l1.out_frac,
+            bound: &b2,
+        };
+        let (l2, _) = FixedLayer::quantize(2, &w.w2, &w.b2, input, ACT_FRAC, true)?;
         Ok(Self { l0, l1, l2 })
     }
 
-    fn hidden_bound(layer: u8, b: &[i128; HIDDEN]) -> Result<[i64; HIDDEN], ShaderError> {
-        let mut out = [0i64; HIDDEN];
-        for (o, &v) in out.iter_mut().zip(b.iter()) {
-            if v > i32::MAX as i128 {
-                return Err(ShaderError::Unrepresentable {
-                    layer,
-                    what: "a hidden activation can exceed 32768 (Q16 i32)",
-                });
-            }
-            *o = v as i64;
-        }
-        Ok(out)
-    }
-
-    /// The three output logits in Q16 (before the sigmoid), saturated to `i32`.
-    #[inline]
-    pub fn logits_q16(&self, feat0: [u8; 4], feat1: [u8; 4], dir: ViewDir) -> [i32; 3] {
+    /// The three output logits in Q24 (before the sigmoid), saturated to `i32`.
+    pub fn logits_q24(&self, feat0: [u8; 4], feat1: [u8; 4], dir: ViewDir) -> [i32; 3] {
         let x = fixed_inputs(feat0, feat1, dir);
-        let h1 = relu_q16(self.l0.forward(&x));
-        let h2 = relu_q16(self.l1.forward(&h1));
+        let h1 = relu(self.l0.forward(&x));
+        let h2 = relu(self.l1.forward(&h1));
         self.l2
             .forward(&h2)
             .map(|v| v.clamp(i32::MIN as i64, i32::MAX as i64) as i32)
@@ -380,9 +411,11 @@ impl FixedMlp {
 
     /// Shades one texel: 8-bit RGB from the two feature texels and the
     /// world-frame view direction. Integers only; never panics.
-    #[inline]
+    ///
+    /// Not `#[inline]` on purpose: it is compiled once, in this crate, at
+    /// its optimisation level, whatever the caller's profile.
     pub fn shade(&self, feat0: [u8; 4], feat1: [u8; 4], dir: ViewDir) -> [u8; 3] {
-        self.logits_q16(feat0, feat1, dir).map(sigmoid_u8)
+        self.logits_q24(feat0, feat1, dir).map(sigmoid_u8)
     }
 
     /// Writes `pub const NAME: FixedMlp = FixedMlp { … };` — Rust source a
@@ -418,6 +451,8 @@ fn write_layer<const I: usize, const O: usize>(
     }
     writeln!(out, "],")?;
     writeln!(out, "        weight_frac: {},", l.weight_frac)?;
+    writeln!(out, "        out_frac: {},", l.out_frac)?;
+    writeln!(out, "        shift: {},", l.shift)?;
     writeln!(out, "    }},")
 }
 
@@ -462,11 +497,16 @@ fn dense_f64<const I: usize, const O: usize>(
     acc
 }
 
-/// Reference MLP in `f64`: RGB in [0, 1].
-pub fn mlp_f64(w: &MlpWeights, x: &[f64; INPUTS]) -> [f64; OUTPUTS] {
+/// Reference MLP in `f64` up to the output pre-activations (logits).
+pub fn mlp_logits_f64(w: &MlpWeights, x: &[f64; INPUTS]) -> [f64; OUTPUTS] {
     let h1 = dense_f64(x, &w.w0, &w.b0).map(|v| v.max(0.0));
     let h2 = dense_f64(&h1, &w.w1, &w.b1).map(|v| v.max(0.0));
-    dense_f64(&h2, &w.w2, &w.b2).map(|z| 1.0 / (1.0 + libm::exp(-z)))
+    dense_f64(&h2, &w.w2, &w.b2)
+}
+
+/// Reference MLP in `f64`: RGB in [0, 1].
+pub fn mlp_f64(w: &MlpWeights, x: &[f64; INPUTS]) -> [f64; OUTPUTS] {
+    mlp_logits_f64(w, x).map(|z| 1.0 / (1.0 + libm::exp(-z)))
 }
 
 /// `round(255 · y)` of a value in [0, 1] (clamped; NaN gives 0).
@@ -502,7 +542,6 @@ fn dense_f32<const I: usize, const O: usize>(
 
 /// The MLP in `f32` (what a GPU computes), from 8-bit texels and a unit
 /// world-frame direction; 8-bit RGB.
-#[inline]
 pub fn shade_f32(w: &MlpWeights, feat0: [u8; 4], feat1: [u8; 4], dir: [f32; 3]) -> [u8; 3] {
     let c = |t: u8| t as f32 * (1.0 / 255.0);
     let a = |t: u8| t as f32 * (2.0 / 255.0) - 1.0;
@@ -573,13 +612,13 @@ mod tests {
             let d = [th.cos() * ph.sin(), th.sin() * ph.sin(), ph.cos()];
             let dir = ViewDir::from_f64(d).unwrap();
             let x = mlp_input_f64(f0, f1, dir.to_f64());
-            let logits = m.logits_q16(f0, f1, dir);
+            let logits = m.logits_q24(f0, f1, dir);
             // Pre-activation logits: compare in f64.
             let h1 = dense_f64(&x, &w.w0, &w.b0).map(|v| v.max(0.0));
             let h2 = dense_f64(&h1, &w.w1, &w.b1).map(|v| v.max(0.0));
             let z = dense_f64(&h2, &w.w2, &w.b2);
             for (l, zf) in logits.iter().zip(z) {
-                worst = worst.max((*l as f64 / 65536.0 - zf).abs());
+                worst = worst.max((*l as f64 / 16777216.0 - zf).abs());
             }
             let got = m.shade(f0, f1, dir);
             let want = shade_f64(&w, f0, f1, d);
@@ -587,8 +626,8 @@ mod tests {
                 assert!((*g as i32 - r as i32).abs() <= 1, "{got:?} {want:?}");
             }
         }
-        // Q16 activations: the logits are within a few 2^-16 of f64.
-        assert!(worst < 1e-3, "worst logit error {worst}");
+        // Q24-ish activations: the logits are within ~1e-6 of f64.
+        assert!(worst < 1e-5, "worst logit error {worst}");
     }
 
     #[test]
@@ -606,7 +645,7 @@ mod tests {
         w.b2[2] = f32::INFINITY;
         let e = FixedMlp::from_weights(&w).unwrap_err();
         assert_eq!(e.to_string(), "2_bias[2] is not finite");
-        // Hidden activations that can exceed 32768 do not fit Q16 i32.
+        // Hidden activations that can exceed 2^31 do not fit an i32.
         let w = weights(2, 1.0e5);
         assert!(matches!(
             FixedMlp::from_weights(&w),
@@ -616,7 +655,7 @@ mod tests {
         let mut w = weights(3, 1.0);
         w.w2.iter_mut().flatten().for_each(|v| *v *= 1.0e6);
         let m = FixedMlp::from_weights(&w).unwrap();
-        let _ = m.shade([255; 4], [255; 4], ViewDir::from_bits([i16::MIN; 3]));
+        let _ = m.shade([255; 4], [255; 4], ViewDir::from_bits([i32::MIN; 3]));
     }
 
     #[test]
@@ -631,7 +670,7 @@ mod tests {
         let _ = m.shade(
             [255; 4],
             [0; 4],
-            ViewDir::from_bits([i16::MAX, i16::MIN, 0]),
+            ViewDir::from_bits([i32::MAX, i32::MIN, 0]),
         );
     }
 

@@ -246,9 +246,9 @@ fn pixel_dir_matches_float_rays_and_is_unit() {
         let q = v.pixel_dir(x, y).to_f64();
         let f = v.pixel_dir_f32(x, y);
         let len = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
-        assert!((len - 1.0).abs() < 2e-4, "{len}");
+        assert!((len - 1.0).abs() < 1e-8, "{len}");
         for k in 0..3 {
-            assert!((q[k] - f[k] as f64).abs() < 1.5e-4, "{q:?} {f:?}");
+            assert!((q[k] - f[k] as f64).abs() < 1e-6, "{q:?} {f:?}");
         }
     }
     // The centre pixel looks at the origin (the camera's target).
