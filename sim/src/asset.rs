@@ -21,6 +21,9 @@ pub mod mlp_json;
 pub mod obj;
 pub mod png_io;
 
+/// The `image` crate whose `RgbaImage` holds atlas pages (re-exported so
+/// code building an [`Asset`] uses the same version).
+pub use image;
 use image::RgbaImage;
 use nerflex_core::raster::{Atlas, Quad};
 use nerflex_core::shader::{FixedMlp, MlpWeights, ShaderError};
@@ -102,10 +105,18 @@ impl Mlp {
 }
 
 /// Two RGBA8 feature pages of the same size (feat0, feat1).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Clone, PartialEq)]
 pub struct AtlasPair {
     feat0: RgbaImage,
     feat1: RgbaImage,
+}
+
+impl std::fmt::Debug for AtlasPair {
+    // Sizes only: the pages are megabytes.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (w, h) = self.dimensions();
+        write!(f, "AtlasPair({w}×{h} RGBA8 ×2)")
+    }
 }
 
 impl AtlasPair {
