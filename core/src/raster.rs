@@ -30,10 +30,14 @@
 //! shading pass — view direction and MLP — uses integers only.
 
 use crate::shader::{FixedMlp, ViewDir};
+/// Re-exported: the `DrawTarget` API this module renders into.
+pub use embedded_graphics_core;
 use embedded_graphics_core::draw_target::DrawTarget;
 use embedded_graphics_core::geometry::{Point, Size};
 use embedded_graphics_core::pixelcolor::Rgb888;
 use embedded_graphics_core::primitives::Rectangle;
+/// Re-exported: [`View::new`] takes a `glam::Mat4`.
+pub use glam;
 use glam::Mat4;
 
 /// Sub-pixel bits of snapped screen positions (1/256 pixel).

@@ -8,9 +8,7 @@
 //! `cargo bench -p nerflex-hostbench --bench shader`
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
-use nerflex_core::shader::{
-    shade_f32, shade_f64, FixedMlp, MlpWeights, ViewDir, MACS_PER_PIXEL,
-};
+use nerflex_core::shader::{shade_f32, shade_f64, FixedMlp, MlpWeights, ViewDir, MACS_PER_PIXEL};
 use std::hint::black_box;
 use std::time::Instant;
 
@@ -26,7 +24,9 @@ struct Input {
 }
 
 fn lcg(s: &mut u64) -> u64 {
-    *s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    *s = s
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
     *s >> 33
 }
 
@@ -74,7 +74,10 @@ fn input() -> Input {
     Input {
         weights,
         texels,
-        dirs_q: dirs_f64.iter().map(|&d| ViewDir::from_f64(d).unwrap()).collect(),
+        dirs_q: dirs_f64
+            .iter()
+            .map(|&d| ViewDir::from_f64(d).unwrap())
+            .collect(),
         dirs_f32: dirs_f64.iter().map(|d| d.map(|v| v as f32)).collect(),
         dirs_f64,
         source,
@@ -102,7 +105,11 @@ fn report(name: &str, mut f: impl FnMut() -> u64) {
 fn bench(c: &mut Criterion) {
     let inp = input();
     let fixed = FixedMlp::from_weights(&inp.weights).unwrap();
-    println!("shader inputs: {} ({} texels)", inp.source, inp.texels.len());
+    println!(
+        "shader inputs: {} ({} texels)",
+        inp.source,
+        inp.texels.len()
+    );
     let run_fixed = || {
         let mut acc = 0u64;
         for (t, d) in inp.texels.iter().zip(&inp.dirs_q) {
@@ -135,8 +142,12 @@ fn bench(c: &mut Criterion) {
     report("f64", run_f64);
     let mut g = c.benchmark_group("shader");
     g.throughput(Throughput::Elements(inp.texels.len() as u64));
-    g.bench_function("fixed", |b| b.iter_batched(|| (), |_| run_fixed(), BatchSize::SmallInput));
-    g.bench_function("f32", |b| b.iter_batched(|| (), |_| run_f32(), BatchSize::SmallInput));
+    g.bench_function("fixed", |b| {
+        b.iter_batched(|| (), |_| run_fixed(), BatchSize::SmallInput)
+    });
+    g.bench_function("f32", |b| {
+        b.iter_batched(|| (), |_| run_f32(), BatchSize::SmallInput)
+    });
     g.bench_function("f64_reference", |b| {
         b.iter_batched(|| (), |_| run_f64(), BatchSize::SmallInput)
     });

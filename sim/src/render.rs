@@ -19,6 +19,9 @@ use nerflex_core::raster::{
     Part, RasterError, Sample, ScreenQuad, TileRenderer, TileStats, View, BACKGROUND,
 };
 use nerflex_core::shader::{shade_f32, MlpWeights};
+/// Re-exported: renders run on the current rayon pool, so a caller can
+/// pick the thread count with `rayon::ThreadPool::install` (e.g. one core).
+pub use rayon;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
 
@@ -117,14 +120,28 @@ where
             }
         }
     }
+    // One task per row of tiles, each with one renderer (16 KiB) reused
+    // across its tiles: enough tasks to balance, few set-ups.
     let tiles: Vec<TileOut> = bins
-        .par_iter()
+        .par_chunks(tx as usize)
         .enumerate()
-        .map_init(
-            || Box::new(TileRenderer::<TILE, TILE>::new()),
-            |tile, (b, bin)| {
-                let b = b as u32;
-                tile.begin(view, (b % tx) * t, (b / tx) * t);
+        .flat_map_iter(|(row, bins_row)| {
+            let mut tile = Box::new(TileRenderer::<TILE, TILE>::new());
+            let mut out = Vec::with_capacity(bins_row.len());
+            for (col, bin) in bins_row.iter().enumerate() {
+                tile.begin(view, col as u32 * t, row as u32 * t);
+                if bin.is_empty() {
+                    // Nothing touches this tile: background, no per-pixel work.
+                    let (_, _, w, h) = tile.rect();
+                    out.push(TileOut {
+                        rect: tile.rect(),
+                        pixels: vec![px(None); (w * h) as usize],
+                        covered: 0,
+                        stats: TileStats::default(),
+                        visible: Vec::new(),
+                    });
+                    continue;
+                }
                 for &i in bin {
                     let sq = &projected[i as usize];
                     if let Some(p) = parts.get(sq.part as usize) {
@@ -137,15 +154,16 @@ where
                         visible.push(s.quad);
                     }
                 });
-                TileOut {
+                out.push(TileOut {
                     rect: tile.rect(),
-                    pixels: shade(tile),
+                    pixels: shade(&tile),
                     covered: u64::from(tile.covered()),
                     stats: tile.stats(),
                     visible,
-                }
-            },
-        )
+                });
+            }
+            out
+        })
         .collect();
     Ok((tiles, total, drawn))
 }

@@ -4,8 +4,8 @@
 
 use nerflex_core::raster::{Quad, Vertex};
 use nerflex_core::shader::MlpWeights;
-use nerflex_sim::asset::{mlp_json, Asset, AtlasPair, Mlp, Shape};
 use nerflex_sim::asset::image::RgbaImage;
+use nerflex_sim::asset::{mlp_json, Asset, AtlasPair, Mlp, Shape};
 use std::path::Path;
 
 /// A tiny asset built in code: two quads in 17 × 17 cells and one lone
@@ -21,8 +21,24 @@ fn tiny_asset() -> Asset {
         ])
     };
     let quads = vec![
-        cell(0.0, [[-0.5, 0.0, 0.5], [-0.5, 0.0, -0.5], [0.5, 0.0, 0.5], [0.5, 0.0, -0.5]]),
-        cell(17.0, [[0.1, -0.2, 0.3], [0.1, 0.2, 0.3], [0.7, -0.2, 0.3], [0.7, 0.2, 0.3]]),
+        cell(
+            0.0,
+            [
+                [-0.5, 0.0, 0.5],
+                [-0.5, 0.0, -0.5],
+                [0.5, 0.0, 0.5],
+                [0.5, 0.0, -0.5],
+            ],
+        ),
+        cell(
+            17.0,
+            [
+                [0.1, -0.2, 0.3],
+                [0.1, 0.2, 0.3],
+                [0.7, -0.2, 0.3],
+                [0.7, 0.2, 0.3],
+            ],
+        ),
         Quad::triangle(
             Vertex::at_texel([0.0, 0.3, 0.0], 0.5, 0.5, w, h),
             Vertex::at_texel([0.2, 0.3, 0.0], 16.5, 0.5, w, h),
@@ -66,10 +82,15 @@ fn real_drums_export_loads_with_the_documented_sizes() {
     assert_eq!((r.triangles, r.vertices), (11_026, 23_582));
     assert_eq!(r.atlas_pages, 2);
     assert_eq!(r.gpu_bytes, 2 * 4096 * 4096 * 4);
-    let on_disk: u64 = ["mlp.json", "shape2.obj", "shape2.pngfeat0.png", "shape2.pngfeat1.png"]
-        .iter()
-        .map(|f| std::fs::metadata(dir.join(f)).unwrap().len())
-        .sum();
+    let on_disk: u64 = [
+        "mlp.json",
+        "shape2.obj",
+        "shape2.pngfeat0.png",
+        "shape2.pngfeat1.png",
+    ]
+    .iter()
+    .map(|f| std::fs::metadata(dir.join(f)).unwrap().len())
+    .sum();
     assert_eq!(r.file_bytes, on_disk);
     // OBJ (x, y, z) = world (x, z, −y): the first vertex of the file is
     // `v -0.141178 -0.468320 0.656254`.
@@ -108,7 +129,8 @@ fn real_drums_write_then_load_round_trips() {
     assert_eq!(b.shapes, a.shapes);
     // Same keys, same numbers as the original mlp.json.
     let orig: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(data.join("mobilenerf/drums/mlp.json")).unwrap()).unwrap();
+        serde_json::from_slice(&std::fs::read(data.join("mobilenerf/drums/mlp.json")).unwrap())
+            .unwrap();
     let ours: serde_json::Value =
         serde_json::from_slice(&std::fs::read(tmp.path().join("mlp.json")).unwrap()).unwrap();
     assert_eq!(orig, ours);
@@ -124,9 +146,26 @@ fn code_built_asset_round_trips_in_the_export_layout() {
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     names.sort();
-    assert_eq!(names, ["mlp.json", "shape1.obj", "shape1.pngfeat0.png", "shape1.pngfeat1.png"]);
+    assert_eq!(
+        names,
+        [
+            "mlp.json",
+            "shape1.obj",
+            "shape1.pngfeat0.png",
+            "shape1.pngfeat1.png"
+        ]
+    );
     let obj = std::fs::read_to_string(tmp.path().join("shape1.obj")).unwrap();
-    let kinds: String = obj.lines().map(|l| if l.starts_with("vt") { 't' } else { l.as_bytes()[0] as char }).collect();
+    let kinds: String = obj
+        .lines()
+        .map(|l| {
+            if l.starts_with("vt") {
+                't'
+            } else {
+                l.as_bytes()[0] as char
+            }
+        })
+        .collect();
     assert_eq!(kinds, "vvvvttttffvvvvttttffvvvtttf");
     assert!(obj.contains("f 1/1 2/2 4/4\nf 1/1 4/4 3/3\n") && obj.contains("f 9/9 10/10 11/11\n"));
     // World (−0.5, 0, 0.5) is written as (x, z, −y) = (−0.5, 0.5, −0).
@@ -135,17 +174,27 @@ fn code_built_asset_round_trips_in_the_export_layout() {
     assert!(obj.contains(&format!("vt {} {}\n", 0.5f32 / 34.0, 1.0f32 - 0.5 / 17.0)));
     let b = Asset::load(tmp.path()).unwrap();
     assert_eq!(b.file_bytes, bytes);
-    assert_eq!((b.mlp.clone(), b.obj_num, b.shapes.clone()), (a.mlp.clone(), a.obj_num, a.shapes.clone()));
+    assert_eq!(
+        (b.mlp.clone(), b.obj_num, b.shapes.clone()),
+        (a.mlp.clone(), a.obj_num, a.shapes.clone())
+    );
     assert_eq!(b.missing_shapes(), vec![0]);
     let r = b.report();
-    assert_eq!((r.quads, r.lone_triangles, r.triangles, r.vertices), (2, 1, 5, 11));
+    assert_eq!(
+        (r.quads, r.lone_triangles, r.triangles, r.vertices),
+        (2, 1, 5, 11)
+    );
     assert_eq!(r.gpu_bytes, 2 * 34 * 17 * 4);
     // Writing again over it works (temp file + rename).
     assert_eq!(a.write(tmp.path()).unwrap(), bytes);
     // Shape indices must be below obj_num.
     let mut bad = a.clone();
     bad.obj_num = 1;
-    assert!(bad.write(&tmp.path().join("x")).unwrap_err().to_string().contains("obj_num"));
+    assert!(bad
+        .write(&tmp.path().join("x"))
+        .unwrap_err()
+        .to_string()
+        .contains("obj_num"));
 }
 
 // ---------------------------------------------------------------------------
@@ -158,7 +207,11 @@ fn raw_png(w: u32, h: u32, color_type: u8, depth: u8, channels: usize) -> Vec<u8
         for &b in data {
             c ^= b as u32;
             for _ in 0..8 {
-                c = if c & 1 != 0 { 0xedb8_8320 ^ (c >> 1) } else { c >> 1 };
+                c = if c & 1 != 0 {
+                    0xedb8_8320 ^ (c >> 1)
+                } else {
+                    c >> 1
+                };
             }
         }
         !c
@@ -171,7 +224,9 @@ fn raw_png(w: u32, h: u32, color_type: u8, depth: u8, channels: usize) -> Vec<u8
         out.extend_from_slice(&crc32(&c).to_be_bytes());
     }
     let row = 1 + w as usize * channels * (depth as usize / 8);
-    let raw: Vec<u8> = (0..h as usize * row).map(|i| if i % row == 0 { 0 } else { (i * 7) as u8 }).collect();
+    let raw: Vec<u8> = (0..h as usize * row)
+        .map(|i| if i % row == 0 { 0 } else { (i * 7) as u8 })
+        .collect();
     let mut z = vec![0x78, 0x01];
     for (i, block) in raw.chunks(65535).enumerate() {
         let last = (i + 1) * 65535 >= raw.len();
@@ -207,7 +262,10 @@ fn written() -> tempfile::TempDir {
 /// Loads `dir` expecting an error that mentions every `needle`.
 fn load_err(dir: &Path, needles: &[&str]) -> String {
     let e = match Asset::load(dir) {
-        Ok(_) => panic!("{} loaded, expected an error mentioning {needles:?}", dir.display()),
+        Ok(_) => panic!(
+            "{} loaded, expected an error mentioning {needles:?}",
+            dir.display()
+        ),
         Err(e) => e.to_string(),
     };
     for n in needles {
@@ -224,7 +282,11 @@ fn edit(path: &Path, f: impl FnOnce(String) -> String) {
 #[test]
 fn our_raw_png_helper_makes_loadable_pngs() {
     let t = written();
-    std::fs::write(t.path().join("shape1.pngfeat1.png"), raw_png(34, 17, 6, 8, 4)).unwrap();
+    std::fs::write(
+        t.path().join("shape1.pngfeat1.png"),
+        raw_png(34, 17, 6, 8, 4),
+    )
+    .unwrap();
     Asset::load(t.path()).unwrap();
 }
 
@@ -234,8 +296,16 @@ fn broken_obj_lines_name_file_and_line() {
     let cases: [(usize, &str, &[&str]); 6] = [
         (1, "v 1 2", &["shape1.obj:1:", "needs 3 numbers"]),
         (5, "vt 0.5 x", &["shape1.obj:5:", "not a number"]),
-        (9, "f 1/1 2/2 40/4", &["shape1.obj:9:", "vertex index 40 out of range"]),
-        (10, "f 1/1 4/4 3/99", &["shape1.obj:10:", "texture coordinate index 99 out of range"]),
+        (
+            9,
+            "f 1/1 2/2 40/4",
+            &["shape1.obj:9:", "vertex index 40 out of range"],
+        ),
+        (
+            10,
+            "f 1/1 4/4 3/99",
+            &["shape1.obj:10:", "texture coordinate index 99 out of range"],
+        ),
         (9, "f 1 2 4", &["shape1.obj:9:", "no texture coordinate"]),
         (9, "f 1/1 2/2", &["shape1.obj:9:", "at least 3"]),
     ];
@@ -255,13 +325,25 @@ fn broken_obj_lines_name_file_and_line() {
 #[test]
 fn broken_pngs_name_the_file() {
     let t = written();
-    std::fs::write(t.path().join("shape1.pngfeat1.png"), raw_png(33, 17, 6, 8, 4)).unwrap();
+    std::fs::write(
+        t.path().join("shape1.pngfeat1.png"),
+        raw_png(33, 17, 6, 8, 4),
+    )
+    .unwrap();
     load_err(t.path(), &["shape1.pngfeat1.png", "wrong size 33×17"]);
     let t = written();
-    std::fs::write(t.path().join("shape1.pngfeat0.png"), raw_png(34, 17, 2, 8, 3)).unwrap();
+    std::fs::write(
+        t.path().join("shape1.pngfeat0.png"),
+        raw_png(34, 17, 2, 8, 3),
+    )
+    .unwrap();
     load_err(t.path(), &["shape1.pngfeat0.png", "Rgb", "8-bit RGBA"]);
     let t = written();
-    std::fs::write(t.path().join("shape1.pngfeat0.png"), raw_png(34, 17, 6, 16, 4)).unwrap();
+    std::fs::write(
+        t.path().join("shape1.pngfeat0.png"),
+        raw_png(34, 17, 6, 16, 4),
+    )
+    .unwrap();
     load_err(t.path(), &["shape1.pngfeat0.png", "16 bits", "8-bit RGBA"]);
     let t = written();
     std::fs::write(t.path().join("shape1.pngfeat1.png"), b"not a png at all").unwrap();
@@ -284,13 +366,18 @@ fn broken_mlp_json_names_file_and_key() {
     load_err(t.path(), &["mlp.json", "missing key `2_bias`"]);
     let t = written();
     let p = t.path().join("mlp.json");
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
     v["1_weights"][3].as_array_mut().unwrap().pop();
     std::fs::write(&p, v.to_string()).unwrap();
-    load_err(t.path(), &["mlp.json", "`1_weights[3]` has 15 entries, expected 16"]);
+    load_err(
+        t.path(),
+        &["mlp.json", "`1_weights[3]` has 15 entries, expected 16"],
+    );
     let t = written();
     let p = t.path().join("mlp.json");
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
     v["0_weights"] = serde_json::to_value([[1.0f64; 16]; 3]).unwrap();
     std::fs::write(&p, v.to_string()).unwrap();
     load_err(t.path(), &["mlp.json", "`0_weights` has 3 rows", "11×16"]);
@@ -301,7 +388,8 @@ fn broken_mlp_json_names_file_and_key() {
     // Finite but absurd weights: the fixed-point shader cannot hold them.
     let t = written();
     let p = t.path().join("mlp.json");
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
     v["0_weights"] = serde_json::to_value([[3.0e37f64; 16]; 11]).unwrap();
     v["1_weights"] = serde_json::to_value([[3.0e37f64; 16]; 16]).unwrap();
     std::fs::write(&p, v.to_string()).unwrap();

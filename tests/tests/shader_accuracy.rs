@@ -24,8 +24,11 @@ fn sphere_directions(n: usize) -> Vec<[f64; 3]> {
         .collect()
 }
 
-/// Distinct occupied texels (feat0.R ≠ 0) of a page pair, with their counts.
-fn occupied_texels(dir: &Path) -> (Vec<([u8; 4], [u8; 4], u64)>, u64) {
+/// A distinct (feat0, feat1) texel pair and how many texels have it.
+type Texel = ([u8; 4], [u8; 4], u64);
+
+/// Distinct occupied texels (feat0.R ≠ 0) of a page pair, and their total.
+fn occupied_texels(dir: &Path) -> (Vec<Texel>, u64) {
     let f0 = png_io::read_rgba8(&dir.join("shape2.pngfeat0.png")).unwrap();
     let f1 = png_io::read_rgba8(&dir.join("shape2.pngfeat1.png")).unwrap();
     let mut counts: HashMap<([u8; 4], [u8; 4]), u64> = HashMap::new();
@@ -42,7 +45,7 @@ fn occupied_texels(dir: &Path) -> (Vec<([u8; 4], [u8; 4], u64)>, u64) {
 }
 
 /// Histogram of max |fixed − reference| over RGB, in 8-bit steps (index 3 = "≥ 3").
-fn histogram(w: &MlpWeights, texels: &[([u8; 4], [u8; 4], u64)], dirs: &[[f64; 3]]) -> [u64; 4] {
+fn histogram(w: &MlpWeights, texels: &[Texel], dirs: &[[f64; 3]]) -> [u64; 4] {
     let m = FixedMlp::from_weights(w).unwrap();
     let qdirs: Vec<(ViewDir, [f64; 3])> = dirs
         .iter()

@@ -82,7 +82,7 @@ pub fn parse(text: &str) -> Result<(MlpWeights, usize), String> {
 /// shortest `f64` decimal that reads back to it (as the export does).
 pub fn to_string(w: &MlpWeights, obj_num: usize) -> String {
     #[derive(serde::Serialize)]
-    struct Out<'a> {
+    struct Out {
         #[serde(rename = "0_weights")]
         w0: Vec<Vec<f64>>,
         #[serde(rename = "1_weights")]
@@ -96,8 +96,6 @@ pub fn to_string(w: &MlpWeights, obj_num: usize) -> String {
         #[serde(rename = "2_bias")]
         b2: Vec<f64>,
         obj_num: usize,
-        #[serde(skip)]
-        _w: std::marker::PhantomData<&'a ()>,
     }
     let m = |rows: &[[f32; 16]]| -> Vec<Vec<f64>> {
         rows.iter()
@@ -116,7 +114,6 @@ pub fn to_string(w: &MlpWeights, obj_num: usize) -> String {
         b1: w.b1.iter().map(|&x| x as f64).collect(),
         b2: w.b2.iter().map(|&x| x as f64).collect(),
         obj_num,
-        _w: std::marker::PhantomData,
     };
     // Serialising plain numbers and arrays cannot fail.
     serde_json::to_string(&out).unwrap_or_default()
