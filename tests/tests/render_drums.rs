@@ -90,6 +90,22 @@ fn drums_at_30_degrees_fixed_and_float_agree_above_45_db() {
         sd > 20.0 && mean > 30.0 && mean < 225.0,
         "mean {mean} sd {sd}"
     );
+    // A close-up (≈ 6× more pixels shaded): still ≥ 45 dB.
+    let k = Intrinsics::from_fov_x(39.6f32.to_radians(), 800, 800);
+    let close = Camera::orbit(90.0, 45.0, 1.8, glam::Vec3::new(0.0, 0.0, -0.5), k);
+    let (fixed, s) = render(a, &close, &RenderOptions::default());
+    let (float, _) = render(a, &close, &RenderOptions { float: true });
+    let p = psnr(&fixed, &float);
+    let differing = fixed
+        .pixels()
+        .zip(float.pixels())
+        .filter(|(x, y)| x != y)
+        .count();
+    println!(
+        "close-up 800×800: pixels shaded {}, PSNR fixed vs f32 {p:.1} dB ({differing} pixels differ)",
+        s.pixels_shaded
+    );
+    assert!(p >= 45.0, "PSNR {p}");
 }
 
 /// In-memory framebuffer for the core's `DrawTarget` path.

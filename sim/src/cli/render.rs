@@ -142,3 +142,48 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_parse_and_bad_ones_name_the_flag() {
+        assert_eq!(parse_size("800").unwrap(), (800, 800));
+        assert_eq!(parse_size("640x480").unwrap(), (640, 480));
+        for bad in ["0", "800x", "x600", "abc", "99999", "-5"] {
+            let e = parse_size(bad).unwrap_err().to_string();
+            assert!(e.contains("--size"), "{bad}: {e}");
+        }
+    }
+
+    fn args() -> Args {
+        Args {
+            asset: PathBuf::from("nowhere"),
+            angle: 0.0,
+            elevation: 30.0,
+            distance: 4.031,
+            fov: 39.6,
+            transforms: None,
+            frame: None,
+            size: "8".into(),
+            float: false,
+            out: PathBuf::from("x.png"),
+        }
+    }
+
+    #[test]
+    fn bad_camera_flags_are_errors() {
+        let mut a = args();
+        a.distance = -1.0;
+        assert!(camera(&a, 8, 8).unwrap_err().to_string().contains("--distance"));
+        let mut a = args();
+        a.fov = 180.0;
+        assert!(camera(&a, 8, 8).unwrap_err().to_string().contains("--fov"));
+        let mut a = args();
+        a.angle = f32::NAN;
+        assert!(camera(&a, 8, 8).unwrap_err().to_string().contains("--angle"));
+        let e = run(args()).unwrap_err();
+        assert!(format!("{e:#}").contains("nowhere"), "{e:#}");
+    }
+}
