@@ -257,7 +257,8 @@ fn file_len(path: &Path) -> Result<u64, AssetError> {
 impl Asset {
     /// Loads an export folder. Shapes `0..obj_num` whose OBJ exists are
     /// loaded (both PNGs must then exist); the others are listed by
-    /// [`Asset::missing_shapes`]. At least one shape must exist.
+    /// [`Asset::missing_shapes`] and a warning naming them goes to stderr.
+    /// At least one shape must exist.
     pub fn load(dir: &Path) -> Result<Asset, AssetError> {
         let mlp_path = dir.join("mlp.json");
         let (weights, obj_num) = mlp_json::read(&mlp_path)?;
@@ -323,12 +324,21 @@ impl Asset {
                 atlas,
             });
         }
-        Ok(Asset {
+        let asset = Asset {
             mlp,
             obj_num,
             shapes,
             file_bytes,
-        })
+        };
+        let missing = asset.missing_shapes();
+        if !missing.is_empty() {
+            eprintln!(
+                "warning: {}: shape(s) {missing:?} of obj_num = {obj_num} are missing; loaded the {} present",
+                dir.display(),
+                asset.shapes.len()
+            );
+        }
+        Ok(asset)
     }
 
     /// Shape indices in `0..obj_num` that are not present.

@@ -108,6 +108,7 @@ fn real_drums_export_loads_with_the_documented_sizes() {
             }
         }
     }
+    println!("drums shape2 world bounds: min {lo:?} max {hi:?}");
     assert!(lo[2] > -0.55 && hi[2] < -0.41, "{lo:?} {hi:?}");
     assert!(lo[0] < -1.1 && hi[0] > 1.1, "{lo:?} {hi:?}");
     // The weights file is the same as weights/drums_mlp.json.

@@ -38,7 +38,10 @@ fn render_command_writes_fixed_and_float_pngs_that_agree() {
     };
     let asset = data.join("mobilenerf/drums");
     let tmp = tempfile::tempdir().unwrap();
-    let (fixed, float) = (tmp.path().join("drums.png"), tmp.path().join("drums_float.png"));
+    let (fixed, float) = (
+        tmp.path().join("drums.png"),
+        tmp.path().join("drums_float.png"),
+    );
     run(args(asset.clone(), fixed.clone(), false)).unwrap();
     run(args(asset.clone(), float.clone(), true)).unwrap();
     let a = image::open(&fixed).unwrap().to_rgba8();

@@ -108,16 +108,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let t0 = std::time::Instant::now();
     let asset = Asset::load(&args.asset)?;
     let load_time = t0.elapsed();
-    let missing = asset.missing_shapes();
-    if !missing.is_empty() {
-        eprintln!(
-            "warning: {}: shape(s) {:?} of obj_num = {} are missing; rendering the {} present",
-            args.asset.display(),
-            missing,
-            asset.obj_num,
-            asset.shapes.len()
-        );
-    }
     println!("asset: {}", asset.report());
     println!("loaded in {:.2} s", load_time.as_secs_f64());
     let opts = RenderOptions { float: args.float };
@@ -176,13 +166,19 @@ mod tests {
     fn bad_camera_flags_are_errors() {
         let mut a = args();
         a.distance = -1.0;
-        assert!(camera(&a, 8, 8).unwrap_err().to_string().contains("--distance"));
+        assert!(camera(&a, 8, 8)
+            .unwrap_err()
+            .to_string()
+            .contains("--distance"));
         let mut a = args();
         a.fov = 180.0;
         assert!(camera(&a, 8, 8).unwrap_err().to_string().contains("--fov"));
         let mut a = args();
         a.angle = f32::NAN;
-        assert!(camera(&a, 8, 8).unwrap_err().to_string().contains("--angle"));
+        assert!(camera(&a, 8, 8)
+            .unwrap_err()
+            .to_string()
+            .contains("--angle"));
         let e = run(args()).unwrap_err();
         assert!(format!("{e:#}").contains("nowhere"), "{e:#}");
     }
