@@ -33,12 +33,13 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 pub enum AssetError {
     /// A file could not be read or written.
-    #[error("{path}: {source}")]
+    // The cause is in the message, not chained (`{:#}` would print it twice).
+    #[error("{path}: {cause}")]
     Io {
         /// The file.
         path: PathBuf,
         /// The cause.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// A malformed OBJ line.
     #[error("{path}:{line}: {msg}")]
@@ -67,12 +68,12 @@ pub enum AssetError {
         msg: String,
     },
     /// Weights the fixed-point shader cannot represent.
-    #[error("{path}: {source}")]
+    #[error("{path}: {cause}")]
     Mlp {
-        /// The file (or `<in memory>`).
+        /// The file.
         path: PathBuf,
         /// The cause, naming the key.
-        source: ShaderError,
+        cause: ShaderError,
     },
     /// Something else is inconsistent (names the file or shape).
     #[error("{0}")]
@@ -248,9 +249,9 @@ pub const MAX_OBJ_NUM: usize = 4096;
 fn file_len(path: &Path) -> Result<u64, AssetError> {
     std::fs::metadata(path)
         .map(|m| m.len())
-        .map_err(|source| AssetError::Io {
+        .map_err(|cause| AssetError::Io {
             path: path.to_path_buf(),
-            source,
+            cause,
         })
 }
 
@@ -262,9 +263,9 @@ impl Asset {
     pub fn load(dir: &Path) -> Result<Asset, AssetError> {
         let mlp_path = dir.join("mlp.json");
         let (weights, obj_num) = mlp_json::read(&mlp_path)?;
-        let mlp = Mlp::new(weights).map_err(|source| AssetError::Mlp {
+        let mlp = Mlp::new(weights).map_err(|cause| AssetError::Mlp {
             path: mlp_path.clone(),
-            source,
+            cause,
         })?;
         let mut file_bytes = file_len(&mlp_path)?;
         let present: Vec<usize> = (0..obj_num)
@@ -284,7 +285,7 @@ impl Asset {
                 if !p.is_file() {
                     return Err(AssetError::Io {
                         path: p.clone(),
-                        source: std::io::Error::new(
+                        cause: std::io::Error::new(
                             std::io::ErrorKind::NotFound,
                             format!(
                                 "missing: shape {i} has {} but not this atlas page",
@@ -391,9 +392,9 @@ impl Asset {
                 self.obj_num
             )));
         }
-        std::fs::create_dir_all(dir).map_err(|source| AssetError::Io {
+        std::fs::create_dir_all(dir).map_err(|cause| AssetError::Io {
             path: dir.to_path_buf(),
-            source,
+            cause,
         })?;
         let mut bytes = 0u64;
         let json = mlp_json::to_string(self.mlp.weights(), self.obj_num);
@@ -432,9 +433,9 @@ pub fn write_atomic(path: &Path, data: &[u8]) -> Result<u64, AssetError> {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
-    let io = |source| AssetError::Io {
+    let io = |cause| AssetError::Io {
         path: path.to_path_buf(),
-        source,
+        cause,
     };
     std::fs::write(&tmp, data).map_err(io)?;
     std::fs::rename(&tmp, path).map_err(|e| {

@@ -7,9 +7,9 @@ use std::path::Path;
 
 /// Reads `mlp.json`: weights and `obj_num`.
 pub fn read(path: &Path) -> Result<(MlpWeights, usize), AssetError> {
-    let text = std::fs::read_to_string(path).map_err(|source| AssetError::Io {
+    let text = std::fs::read_to_string(path).map_err(|cause| AssetError::Io {
         path: path.to_path_buf(),
-        source,
+        cause,
     })?;
     parse(&text).map_err(|msg| AssetError::Json {
         path: path.to_path_buf(),
