@@ -479,7 +479,7 @@ impl ScreenQuad {
         let mut any = false;
         for tri in quad.triangles() {
             if !tri.iter().all(|&i| out.valid & (1 << i) != 0) {
-                out.clipped += 1;
+                out.clipped = out.clipped.saturating_add(1);
                 continue;
             }
             any = true;
@@ -549,12 +549,12 @@ pub struct TileStats {
 }
 
 impl TileStats {
-    /// Field-wise sum.
+    /// Field-wise sum (saturating: counters never wrap or panic).
     pub fn add(&mut self, o: &TileStats) {
-        self.triangles += o.triangles;
-        self.triangles_clipped += o.triangles_clipped;
-        self.fragments += o.fragments;
-        self.discarded += o.discarded;
+        self.triangles = self.triangles.saturating_add(o.triangles);
+        self.triangles_clipped = self.triangles_clipped.saturating_add(o.triangles_clipped);
+        self.fragments = self.fragments.saturating_add(o.fragments);
+        self.discarded = self.discarded.saturating_add(o.discarded);
     }
 }
 
@@ -645,7 +645,7 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
         };
         for tri in tris {
             if !tri.iter().all(|&i| sq.valid & (1 << i) != 0) {
-                self.stats.triangles_clipped += 1;
+                self.stats.triangles_clipped = self.stats.triangles_clipped.saturating_add(1);
                 continue;
             }
             let [a, b, c] = tri.map(|i| sq.v.get(i).copied().unwrap_or_default());
@@ -679,7 +679,7 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
         if px0 > px1 || py0 > py1 {
             return;
         }
-        self.stats.triangles += 1;
+        self.stats.triangles = self.stats.triangles.saturating_add(1);
         let bias = |p: &ScreenVertex, q: &ScreenVertex| {
             let (dx, dy) = (q.x - p.x, q.y - p.y);
             if dy > 0 || (dy == 0 && dx < 0) {
@@ -718,9 +718,9 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
                             let tx = texel_index(s * fw, aw);
                             let ty = texel_index(t * fh, ah);
                             if atlas.feat0_r(tx, ty) == 0 {
-                                self.stats.discarded += 1;
+                                self.stats.discarded = self.stats.discarded.saturating_add(1);
                             } else {
-                                self.stats.fragments += 1;
+                                self.stats.fragments = self.stats.fragments.saturating_add(1);
                                 *g = GPixel {
                                     inv_w: iw,
                                     part: sq.part,
@@ -867,7 +867,8 @@ fn for_each_tile<const W: usize, const H: usize, E>(
 ) -> Result<(u32, TileStats), E> {
     let mut drawn = 0u32;
     let mut stats = TileStats::default();
-    let (tw, th) = (W.max(1) as u32, H.max(1) as u32);
+    let side = |n: usize| u32::try_from(n.max(1)).unwrap_or(u32::MAX);
+    let (tw, th) = (side(W), side(H));
     let mut y0 = 0;
     while y0 < view.height {
         let mut x0 = 0;
@@ -881,7 +882,7 @@ fn for_each_tile<const W: usize, const H: usize, E>(
                             tile.draw(&sq, &part.atlas);
                             let [bx, by, _, _] = sq.bbox;
                             if bx >= x0 && bx < x0 + tw && by >= y0 && by < y0 + th {
-                                drawn += 1;
+                                drawn = drawn.saturating_add(1);
                             }
                         }
                     }
@@ -890,9 +891,9 @@ fn for_each_tile<const W: usize, const H: usize, E>(
             }
             stats.add(&tile.stats());
             done(tile)?;
-            x0 += tw;
+            x0 = x0.saturating_add(tw);
         }
-        y0 += th;
+        y0 = y0.saturating_add(th);
     }
     Ok((drawn, stats))
 }
@@ -911,7 +912,7 @@ where
     let mut shaded = 0u32;
     let (quads_drawn, tiles) = for_each_tile(tile, view, parts, |t| {
         let (x0, y0, w, h) = t.rect();
-        shaded += t.covered();
+        shaded = shaded.saturating_add(t.covered());
         let area = Rectangle::new(Point::new(x0 as i32, y0 as i32), Size::new(w, h));
         let colors = (0..h).flat_map(|y| {
             (0..w).map(move |x| {
@@ -948,7 +949,7 @@ pub fn coverage<const W: usize, const H: usize>(
     visible.iter_mut().for_each(|w| *w = 0);
     let mut covered = 0u32;
     let (quads_drawn, tiles) = for_each_tile::<W, H, RasterError>(tile, view, parts, |t| {
-        covered += t.covered();
+        covered = covered.saturating_add(t.covered());
         t.mark_visible(visible);
         Ok(())
     })?;
