@@ -152,7 +152,7 @@ fn host_renderer_equals_the_microcontroller_tile_path_and_coverage_pass() {
         })
         .collect();
     let mut fb = Fb(RgbaImage::new(320, 320));
-    // A 16 × 8 tile: 4 KiB of G-buffer, microcontroller-sized.
+    // A 16 × 8 tile: 2 KiB of G-buffer, microcontroller-sized.
     let mut tile = Box::new(TileRenderer::<16, 8>::new());
     let fs = render_frame(&mut tile, &view, &parts, &mut fb).unwrap();
     for (h, d) in host.pixels().zip(fb.0.pixels()) {

@@ -340,3 +340,9 @@ fn quads_behind_or_beside_the_camera_are_not_drawn_and_bad_input_does_not_panic(
     assert!(View::new(Mat4::ZERO, 10.0, 10.0, 4.0, 4.0, 8, 8).is_err());
     assert!(View::new(Mat4::IDENTITY, 10.0, 10.0, 4.0, 4.0, 0, 8).is_err());
 }
+
+#[test]
+fn g_buffer_is_16_bytes_per_pixel() {
+    assert_eq!(core::mem::size_of::<GPixel>(), 16);
+    assert!(core::mem::size_of::<TileRenderer<16, 8>>() < 16 * 8 * 16 + 64);
+}
