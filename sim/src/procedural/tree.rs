@@ -1,0 +1,210 @@
+//! The branching skeleton of the `tree` object: tapered capsules grown
+//! recursively from a fixed seed, with foliage clumps at the tips, evaluated
+//! through a bounding-sphere hierarchy so a distance query only visits the
+//! branches near the point.
+
+use super::sdf::{smin, tapered_capsule};
+use glam::{Quat, Vec3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::sync::OnceLock;
+
+/// Blend width between branches (local units).
+const BRANCH_BLEND: f32 = 0.03;
+/// Blend width between foliage clumps.
+const LEAF_BLEND: f32 = 0.08;
+
+struct Node {
+    a: Vec3,
+    b: Vec3,
+    ra: f32,
+    rb: f32,
+    foliage: Option<(Vec3, f32)>,
+    bound_c: Vec3,
+    bound_r: f32,
+    children: Vec<usize>,
+}
+
+/// The grown tree.
+pub struct Tree {
+    nodes: Vec<Node>,
+    /// Axis-aligned bounds of wood and foliage (before leaf displacement).
+    pub min: Vec3,
+    /// Maximum corner.
+    pub max: Vec3,
+}
+
+/// The tree, grown on first use (always the same).
+pub fn tree() -> &'static Tree {
+    static TREE: OnceLock<Tree> = OnceLock::new();
+    TREE.get_or_init(grow)
+}
+
+const MAX_DEPTH: u32 = 5;
+
+fn grow() -> Tree {
+    let mut rng = ChaCha8Rng::seed_from_u64(0x7ee5);
+    let mut nodes = Vec::new();
+    let trunk_dir = Vec3::new(0.08, -0.04, 1.0).normalize();
+    branch(
+        &mut nodes,
+        &mut rng,
+        0,
+        Vec3::new(0.0, 0.0, -0.66),
+        trunk_dir,
+        0.52,
+        0.095,
+    );
+    finish_bounds(&mut nodes, 0);
+    let (mut min, mut max) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+    for n in &nodes {
+        for (c, r) in [(n.a, n.ra), (n.b, n.rb)]
+            .into_iter()
+            .chain(n.foliage)
+        {
+            min = min.min(c - Vec3::splat(r));
+            max = max.max(c + Vec3::splat(r));
+        }
+    }
+    Tree { nodes, min, max }
+}
+
+fn branch(
+    nodes: &mut Vec<Node>,
+    rng: &mut ChaCha8Rng,
+    depth: u32,
+    a: Vec3,
+    dir: Vec3,
+    len: f32,
+    ra: f32,
+) -> usize {
+    let b = a + dir * len;
+    let rb = ra * 0.7;
+    let id = nodes.len();
+    let foliage = (depth >= MAX_DEPTH - 1).then(|| {
+        let r = if depth == MAX_DEPTH { 0.12 } else { 0.1 };
+        (b + dir * 0.05, r + rng.random_range(0.0..0.04))
+    });
+    nodes.push(Node {
+        a,
+        b,
+        ra,
+        rb,
+        foliage,
+        bound_c: Vec3::ZERO,
+        bound_r: 0.0,
+        children: Vec::new(),
+    });
+    if depth < MAX_DEPTH {
+        let n = if depth == 0 { 3 } else { rng.random_range(2..=3) };
+        let phase: f32 = rng.random_range(0.0..std::f32::consts::TAU);
+        // Any vector not parallel to dir gives a perpendicular axis family.
+        let side = if dir.z.abs() < 0.9 { Vec3::Z } else { Vec3::X };
+        let perp = dir.cross(side).normalize();
+        for k in 0..n {
+            let az = phase + k as f32 * std::f32::consts::TAU / n as f32 + rng.random_range(-0.3..0.3);
+            let tilt = rng.random_range(0.45..0.75f32);
+            let axis = Quat::from_axis_angle(dir, az) * perp;
+            let mut d = Quat::from_axis_angle(axis, tilt) * dir;
+            // Branches reach up and out, as trees do toward light.
+            d = (d + Vec3::new(0.0, 0.0, 0.25)).normalize();
+            let l = len * rng.random_range(0.68..0.8);
+            let c = branch(nodes, rng, depth + 1, b, d, l, rb);
+            nodes[id].children.push(c);
+        }
+    }
+    id
+}
+
+/// Bounding sphere of each subtree, children first.
+fn finish_bounds(nodes: &mut [Node], id: usize) {
+    let children = nodes[id].children.clone();
+    for &c in &children {
+        finish_bounds(nodes, c);
+    }
+    let n = &nodes[id];
+    let c = 0.5 * (n.a + n.b);
+    let mut r = 0.5 * (n.b - n.a).length() + n.ra.max(n.rb) + BRANCH_BLEND;
+    if let Some((fc, fr)) = n.foliage {
+        r = r.max((fc - c).length() + fr + LEAF_BLEND);
+    }
+    for &ch in &children {
+        r = r.max((nodes[ch].bound_c - c).length() + nodes[ch].bound_r);
+    }
+    nodes[id].bound_c = c;
+    nodes[id].bound_r = r;
+}
+
+impl Tree {
+    /// Distances to the wood and to the (undisplaced) foliage.
+    pub fn eval(&self, p: Vec3) -> (f32, f32) {
+        let (mut wood, mut leaf) = (f32::MAX, f32::MAX);
+        let mut stack = [0usize; 64];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let n = &self.nodes[stack[top]];
+            // A subtree farther than the current distance plus the blend
+            // width cannot change the smooth minimum.
+            if (p - n.bound_c).length() - n.bound_r > wood.min(leaf) + LEAF_BLEND {
+                continue;
+            }
+            wood = smin(wood, tapered_capsule(p, n.a, n.b, n.ra, n.rb), BRANCH_BLEND);
+            if let Some((c, r)) = n.foliage {
+                leaf = smin(leaf, (p - c).length() - r, LEAF_BLEND);
+            }
+            for &c in &n.children {
+                if top < stack.len() {
+                    stack[top] = c;
+                    top += 1;
+                }
+            }
+        }
+        (wood, leaf)
+    }
+
+    /// Number of branch segments.
+    #[cfg(test)]
+    pub fn branches(&self) -> usize {
+        self.nodes.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn culled_evaluation_matches_brute_force_near_the_surface() {
+        let t = tree();
+        assert!(t.branches() > 20);
+        let brute = |p: Vec3| {
+            let (mut w, mut l) = (f32::MAX, f32::MAX);
+            for n in &t.nodes {
+                w = smin(w, tapered_capsule(p, n.a, n.b, n.ra, n.rb), BRANCH_BLEND);
+                if let Some((c, r)) = n.foliage {
+                    l = smin(l, (p - c).length() - r, LEAF_BLEND);
+                }
+            }
+            w.min(l)
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        for _ in 0..2000 {
+            let p = Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            let (w, l) = t.eval(p);
+            let fast = w.min(l);
+            let slow = brute(p);
+            // Culling only drops far blends: the sign and near distances agree.
+            if slow.abs() < 0.05 {
+                assert!((fast - slow).abs() < 0.02, "{p} {fast} {slow}");
+            }
+            if slow.abs() > 1e-3 {
+                assert_eq!(fast < 0.0, slow < 0.0, "{p} {fast} {slow}");
+            }
+        }
+    }
+}
