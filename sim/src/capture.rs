@@ -15,6 +15,9 @@
 //! [`Frame::instance_mask`] then derives a single-object mask from alpha
 //! ([`mask_from_alpha`]). Every frame of a capture has the same image size.
 
+/// The image crate of the frame types, re-exported so users name the same version.
+pub use image;
+
 use crate::camera::{CameraError, FrameEntry, Intrinsics, Transforms};
 use crate::camera::{rows_from_mat4, Camera};
 use image::{DynamicImage, GrayImage, ImageFormat, RgbaImage};

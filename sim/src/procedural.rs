@@ -32,9 +32,10 @@ pub use layout::{
 };
 pub use objects::{Aabb, Material, ObjectKind};
 pub use render::{RenderOptions, RenderedView, SceneRenderer};
+/// The vector type of placements and bounds.
+pub use glam::Vec3;
 
 use crate::camera::{Camera, Intrinsics};
-use glam::Vec3;
 use image::{Rgba, RgbaImage};
 
 /// Renders placed objects from one camera (convenience for

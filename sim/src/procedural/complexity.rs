@@ -30,6 +30,28 @@ pub struct Occupancy {
     pub surface: Vec<Vec3>,
     /// Bounds of the occupied cells, grown by one cell (local units).
     pub tight: Aabb,
+    /// Minimum corner of the grid cube (local units).
+    pub origin: Vec3,
+    /// Signed distance at every cell centre, x fastest, then y, then z.
+    pub distances: Vec<f32>,
+}
+
+impl Occupancy {
+    /// A lower bound of the object's distance function at `p` from the
+    /// cached cell-centre value: the value at the centre of `p`'s cell minus
+    /// the most the function can change over half a cell diagonal (its slope
+    /// is at most `1 / march_step`). `None` outside the grid.
+    #[inline]
+    pub fn distance_bound(&self, p: Vec3) -> Option<f32> {
+        let g = self.grid as usize;
+        let q = (p - self.origin) / self.voxel;
+        if q.min_element() < 0.0 || q.max_element() >= g as f32 {
+            return None;
+        }
+        let (i, j, k) = (q.x as usize, q.y as usize, q.z as usize);
+        let d = *self.distances.get(i + g * (j + g * k))?;
+        Some(d - self.voxel * 0.866_026 / self.kind.march_step())
+    }
 }
 
 /// Computes the occupancy of `kind` at `grid` cells per axis.
@@ -42,13 +64,15 @@ pub fn occupancy(kind: ObjectKind, grid: u32) -> Occupancy {
     let centre = |i: usize, j: usize, k: usize| {
         origin + voxel * Vec3::new(i as f32 + 0.5, j as f32 + 0.5, k as f32 + 0.5)
     };
+    let distances: Vec<f32> = (0..g * g * g)
+        .into_par_iter()
+        .map(|idx| kind.sdf(centre(idx % g, (idx / g) % g, idx / (g * g))))
+        .collect();
     // Cells outside the object's own bounds are empty by construction.
     let occ: Vec<bool> = (0..g * g * g)
-        .into_par_iter()
         .map(|idx| {
             let (i, j, k) = (idx % g, (idx / g) % g, idx / (g * g));
-            let c = centre(i, j, k);
-            b.contains(c) && kind.sdf(c) < 0.0
+            distances[idx] < 0.0 && b.contains(centre(i, j, k))
         })
         .collect();
     let at = |i: isize, j: isize, k: isize| -> bool {
@@ -97,6 +121,8 @@ pub fn occupancy(kind: ObjectKind, grid: u32) -> Occupancy {
         occupied: 0,
         surface: Vec::new(),
         tight: Aabb::EMPTY,
+        origin,
+        distances,
     };
     for (q, o, s) in per_slice {
         out.quads += q;
@@ -154,6 +180,25 @@ mod tests {
         assert!(o.quads as f32 <= 2.0 * (across.x * across.y + across.y * across.z + across.x * across.z));
         // Finer grids find more faces.
         assert!(occupancy(ObjectKind::Gear, 32).quads > occupancy(ObjectKind::Gear, 16).quads);
+    }
+
+    #[test]
+    fn cached_bounds_never_exceed_the_distance() {
+        for kind in ObjectKind::ALL {
+            let o = stats(kind);
+            let b = kind.bounds();
+            let mut n = 0;
+            for i in 0..4000u32 {
+                let h = |s: u32| ((i.wrapping_mul(2_654_435_761).wrapping_add(s * 97)) % 10_007) as f32 / 10_007.0;
+                let p = b.min + b.size() * Vec3::new(h(1), h(2), h(3));
+                if let Some(lb) = o.distance_bound(p) {
+                    let d = kind.sdf(p);
+                    assert!(lb <= d + 1e-4, "{kind}: bound {lb} above distance {d} at {p}");
+                    n += 1;
+                }
+            }
+            assert!(n > 3000);
+        }
     }
 
     #[test]

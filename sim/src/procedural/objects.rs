@@ -681,9 +681,11 @@ fn potted_tree(p: Vec3) -> (f32, u8) {
     // Foliage: balls of leaves at cellular feature points, kept inside the
     // clumps (both are distance bounds, so is their maximum; far from the
     // clumps the clump distance alone is a bound).
-    let leaf = if clump < 0.08 {
+    // Clamping the leaf distance at the switch keeps the function continuous.
+    const NEAR: f32 = 0.08;
+    let leaf = if clump < NEAR {
         let (f1, _) = cellular(p * LEAF_FREQ);
-        clump.max(f1 / LEAF_FREQ - LEAF_R)
+        clump.max((f1 / LEAF_FREQ - LEAF_R).min(NEAR))
     } else {
         clump
     };

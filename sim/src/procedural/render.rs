@@ -19,6 +19,7 @@
 //!   mean of the hits (straight alpha), the mask value the object most rays hit.
 
 use super::layout::{Placement, PlacedObject};
+use super::complexity::{stats, Occupancy};
 use super::objects::{Aabb, ObjectKind};
 use crate::camera::Camera;
 use glam::Vec3;
@@ -63,15 +64,44 @@ pub struct RenderedView {
 
 struct Prepared {
     kind: ObjectKind,
+    /// Cached cell-centre distances for the far-field bound.
+    field: &'static Occupancy,
     placement: Placement,
     bounds: Aabb,
     step: f32,
     detail: f32,
 }
 
+impl Prepared {
+    /// The object's distance bound: the cached far-field bound when it is
+    /// at least a cell, else the exact function (near the surface).
+    #[inline]
+    fn dist(&self, p: Vec3) -> f32 {
+        match self.field.distance_bound(p) {
+            Some(lb) if lb > self.field.voxel => lb,
+            _ => self.kind.sdf(p),
+        }
+    }
+}
+
 /// A scene ready to render from any camera.
 pub struct SceneRenderer {
     objects: Vec<Prepared>,
+}
+
+/// Slowly varying lighting terms of a shaded point.
+#[derive(Debug, Clone, Copy)]
+struct Light {
+    /// Ambient occlusion, 0–1.
+    ao: f32,
+    /// Key-light visibility, 0–1.
+    shadow: f32,
+}
+
+impl Default for Light {
+    fn default() -> Self {
+        Self { ao: 1.0, shadow: 1.0 }
+    }
 }
 
 struct Hit {
@@ -103,6 +133,7 @@ impl SceneRenderer {
                 .take(255)
                 .map(|o| Prepared {
                     kind: o.kind,
+                    field: stats(o.kind),
                     placement: o.placement,
                     bounds: o.kind.bounds(),
                     step: o.kind.march_step(),
@@ -121,14 +152,17 @@ impl SceneRenderer {
         // Pass 1: one ray through each pixel centre.
         let mut lin = vec![Vec3::ZERO; w * h];
         let mut ids = vec![0u8; w * h];
+        let mut light = vec![Light::default(); w * h];
         lin.par_chunks_mut(w.max(1))
             .zip(ids.par_chunks_mut(w.max(1)))
+            .zip(light.par_chunks_mut(w.max(1)))
             .enumerate()
-            .for_each(|(y, (lrow, irow))| {
+            .for_each(|(y, ((lrow, irow), grow))| {
                 for x in 0..w {
-                    let (c, id) = self.sample(camera, x as f32 + 0.5, y as f32 + 0.5, pix, opts);
+                    let (c, id, l) = self.sample(camera, x as f32 + 0.5, y as f32 + 0.5, pix, opts, None);
                     lrow[x] = c;
                     irow[x] = id;
+                    grow[x] = l;
                 }
             });
         let disp: Vec<Vec3> = lin.par_iter().map(|&c| display(c)).collect();
@@ -166,7 +200,10 @@ impl SceneRenderer {
                         for sx in 0..n {
                             let fx = x as f32 + (sx as f32 + 0.5) / n as f32;
                             let fy = y as f32 + (sy as f32 + 0.5) / n as f32;
-                            let (c, id) = self.sample(camera, fx, fy, pix, opts);
+                            // Occlusion and shadow vary slowly: reuse the
+                            // centre ray's where the same object is hit.
+                            let reuse = (ids[i] != 0).then_some((ids[i], light[i]));
+                            let (c, id, _) = self.sample(camera, fx, fy, pix, opts, reuse);
                             if id != 0 {
                                 counts[id as usize] += 1;
                                 sum += c;
@@ -233,13 +270,27 @@ impl SceneRenderer {
         }
     }
 
-    /// Linear radiance and mask value (0 = background) of the ray through
-    /// continuous pixel coordinates.
-    fn sample(&self, camera: &Camera, px: f32, py: f32, pix: f32, opts: &RenderOptions) -> (Vec3, u8) {
+    /// Linear radiance, mask value (0 = background) and lighting terms of
+    /// the ray through continuous pixel coordinates; `reuse` supplies the
+    /// lighting terms for hits on the object with that mask value.
+    fn sample(
+        &self,
+        camera: &Camera,
+        px: f32,
+        py: f32,
+        pix: f32,
+        opts: &RenderOptions,
+        reuse: Option<(u8, Light)>,
+    ) -> (Vec3, u8, Light) {
         let (o, d) = camera.ray(px, py);
         match self.trace(o, d, pix) {
-            Some(hit) => (self.shade(&hit, d, opts), (hit.obj + 1) as u8),
-            None => (Vec3::ZERO, 0),
+            Some(hit) => {
+                let id = (hit.obj + 1) as u8;
+                let known = reuse.and_then(|(rid, l)| (rid == id).then_some(l));
+                let (c, l) = self.shade(&hit, d, opts, known);
+                (c, id, l)
+            }
+            None => (Vec3::ZERO, 0, Light::default()),
         }
     }
 
@@ -261,7 +312,7 @@ impl SceneRenderer {
             }
             let ob = &self.objects[i];
             let s = ob.placement.scale;
-            if let Some((t, eps)) = march(ob.kind, ob.step, ro, rd, t0w / s, t1, pix) {
+            if let Some((t, eps)) = march(ob, ro, rd, t0w / s, t1, pix) {
                 let tw = t * s;
                 if best.as_ref().is_none_or(|(bt, _)| tw < *bt) {
                     best = Some((tw, Hit { obj: i, p: ro + rd * t, eps }));
@@ -271,24 +322,26 @@ impl SceneRenderer {
         best.map(|(_, h)| h)
     }
 
-    fn shade(&self, hit: &Hit, d: Vec3, opts: &RenderOptions) -> Vec3 {
+    fn shade(&self, hit: &Hit, d: Vec3, opts: &RenderOptions, known: Option<Light>) -> (Vec3, Light) {
         let ob = &self.objects[hit.obj];
         let nl = normal(ob.kind, hit.p, hit.eps.max(4e-4));
         let m = ob.kind.material(hit.p, nl, ob.detail);
         let n = ob.placement.dir_to_world(nl);
         let v = -d;
         let pw = ob.placement.to_world(hit.p);
-        let ao = if opts.ambient_occlusion {
-            ambient_occlusion(ob.kind, hit.p, nl)
-        } else {
-            1.0
-        };
-        let key_shadow = if opts.shadows && n.dot(KEY_DIR) > 0.0 {
-            let bias = (3.0 * hit.eps).max(2e-3) * ob.placement.scale;
-            self.soft_shadow(pw + n * bias, KEY_DIR)
-        } else {
-            1.0
-        };
+        let Light { ao, shadow: key_shadow } = known.unwrap_or_else(|| Light {
+            ao: if opts.ambient_occlusion {
+                ambient_occlusion(ob, hit.p, nl)
+            } else {
+                1.0
+            },
+            shadow: if opts.shadows && n.dot(KEY_DIR) > 0.0 {
+                let bias = (3.0 * hit.eps).max(2e-3) * ob.placement.scale;
+                self.soft_shadow(pw + n * bias, KEY_DIR)
+            } else {
+                1.0
+            },
+        });
         let spec_rgb = Vec3::splat(m.specular).lerp(m.albedo, m.metal);
         let diffuse_rgb = m.albedo * (1.0 - 0.85 * m.metal);
         let norm = (m.shininess + 8.0) / (8.0 * std::f32::consts::PI);
@@ -311,7 +364,8 @@ impl SceneRenderer {
         let gloss = m.shininess / (m.shininess + 40.0);
         let env = GROUND.lerp(SKY, 0.5 + 0.5 * r.z) * ao * gloss;
         let env_w = spec_rgb + (Vec3::ONE - spec_rgb) * fresnel * m.specular.max(0.04);
-        diffuse_rgb * (diffuse + ambient) + spec_rgb * spec + env * env_w
+        let c = diffuse_rgb * (diffuse + ambient) + spec_rgb * spec + env * env_w;
+        (c, Light { ao, shadow: key_shadow })
     }
 
     /// Key-light visibility from world point `p` along `l`: 0 shadowed,
@@ -329,7 +383,7 @@ impl SceneRenderer {
                 if t > t1 {
                     break;
                 }
-                let h = ob.kind.sdf(ro + rd * t);
+                let h = ob.dist(ro + rd * t);
                 res = res.min(10.0 * h / t);
                 if res < 0.01 {
                     return 0.0;
@@ -346,11 +400,12 @@ impl SceneRenderer {
 /// (local units along the unit direction `rd` from the camera-side origin
 /// `ro`). Returns the hit distance and the tolerance used there.
 #[inline]
-fn march(kind: ObjectKind, step: f32, ro: Vec3, rd: Vec3, t0: f32, t1: f32, pix: f32) -> Option<(f32, f32)> {
+fn march(ob: &Prepared, ro: Vec3, rd: Vec3, t0: f32, t1: f32, pix: f32) -> Option<(f32, f32)> {
+    let step = ob.step;
     let mut t = t0;
     let mut last = (f32::MAX, 0.0);
     for _ in 0..MAX_STEPS {
-        let d = kind.sdf(ro + rd * t);
+        let d = ob.dist(ro + rd * t);
         let eps = (0.5 * pix * t).max(1e-4);
         if d < eps {
             return Some((t, eps));
@@ -380,11 +435,11 @@ fn normal(kind: ObjectKind, p: Vec3, h: f32) -> Vec3 {
 
 /// Occlusion from the object itself, probing along the normal.
 #[inline]
-fn ambient_occlusion(kind: ObjectKind, p: Vec3, n: Vec3) -> f32 {
+fn ambient_occlusion(ob: &Prepared, p: Vec3, n: Vec3) -> f32 {
     let (mut occ, mut w) = (0.0, 1.0);
     for i in 0..5 {
         let h = 0.01 + 0.04 * i as f32;
-        occ += (h - kind.sdf(p + n * h)).max(0.0) * w;
+        occ += (h - ob.kind.sdf(p + n * h)).max(0.0) * w;
         w *= 0.8;
     }
     (1.0 - 2.2 * occ).clamp(0.0, 1.0)

@@ -12,7 +12,7 @@ use std::sync::OnceLock;
 /// Blend width between branches (local units).
 const BRANCH_BLEND: f32 = 0.03;
 /// Blend width between foliage clumps.
-const LEAF_BLEND: f32 = 0.08;
+const LEAF_BLEND: f32 = 0.04;
 
 struct Node {
     a: Vec3,
@@ -28,6 +28,8 @@ struct Node {
 /// The grown tree.
 pub struct Tree {
     nodes: Vec<Node>,
+    /// Candidate lists of a uniform grid over the tree (see [`Tree::eval`]).
+    grid: CellGrid,
     /// Axis-aligned bounds of wood and foliage (before leaf displacement).
     pub min: Vec3,
     /// Maximum corner.
@@ -66,7 +68,92 @@ fn grow() -> Tree {
             max = max.max(c + Vec3::splat(r));
         }
     }
-    Tree { nodes, min, max }
+    let grid = CellGrid::build(&nodes, min - Vec3::splat(0.1), max + Vec3::splat(0.1));
+    Tree {
+        nodes,
+        grid,
+        min,
+        max,
+    }
+}
+
+/// Cells per axis of the candidate grid.
+const CELLS: usize = 32;
+
+/// For every cell of a uniform grid, the branches and the foliage clumps
+/// that can change the smooth minimum anywhere in the cell: a primitive
+/// whose distance lower bound over the cell (value at the centre minus the
+/// half diagonal) exceeds the smallest upper bound of any primitive (value
+/// at the centre plus the half diagonal) by more than the blend width
+/// cannot, so it is left out and the result is unchanged.
+struct CellGrid {
+    min: Vec3,
+    cell: Vec3,
+    /// Per cell: start in `items`, branch count, clump count.
+    cells: Vec<(u32, u16, u16)>,
+    items: Vec<u16>,
+}
+
+impl CellGrid {
+    fn build(nodes: &[Node], min: Vec3, max: Vec3) -> Self {
+        let cell = (max - min) / CELLS as f32;
+        let half_diag = 0.5 * cell.length();
+        let mut cells = Vec::with_capacity(CELLS * CELLS * CELLS);
+        let mut items = Vec::new();
+        for k in 0..CELLS {
+            for j in 0..CELLS {
+                for i in 0..CELLS {
+                    let c = min + cell * Vec3::new(i as f32 + 0.5, j as f32 + 0.5, k as f32 + 0.5);
+                    let wood: Vec<f32> = nodes
+                        .iter()
+                        .map(|n| tapered_capsule(c, n.a, n.b, n.ra, n.rb))
+                        .collect();
+                    let leaf: Vec<Option<f32>> = nodes
+                        .iter()
+                        .map(|n| n.foliage.map(|(fc, r)| (c - fc).length() - r))
+                        .collect();
+                    let wmin = wood.iter().fold(f32::MAX, |a, &b| a.min(b)) + half_diag;
+                    let lmin = leaf.iter().flatten().fold(f32::MAX, |a, &b| a.min(b)) + half_diag;
+                    let start = items.len() as u32;
+                    let mut nw = 0u16;
+                    for (idx, &d) in wood.iter().enumerate() {
+                        if d - half_diag <= wmin + BRANCH_BLEND {
+                            items.push(idx as u16);
+                            nw += 1;
+                        }
+                    }
+                    let mut nl = 0u16;
+                    for (idx, d) in leaf.iter().enumerate() {
+                        if let Some(d) = d {
+                            if d - half_diag <= lmin + LEAF_BLEND {
+                                items.push(idx as u16);
+                                nl += 1;
+                            }
+                        }
+                    }
+                    cells.push((start, nw, nl));
+                }
+            }
+        }
+        Self {
+            min,
+            cell,
+            cells,
+            items,
+        }
+    }
+
+    #[inline]
+    fn lookup(&self, p: Vec3) -> Option<(&[u16], &[u16])> {
+        let q = (p - self.min) / self.cell;
+        if q.min_element() < 0.0 || q.max_element() >= CELLS as f32 {
+            return None;
+        }
+        let (i, j, k) = (q.x as usize, q.y as usize, q.z as usize);
+        let &(start, nw, nl) = self.cells.get(i + CELLS * (j + CELLS * k))?;
+        let (s, w, l) = (start as usize, nw as usize, nl as usize);
+        Some((self.items.get(s..s + w)?, self.items.get(s + w..s + w + l)?))
+    }
 }
 
 fn branch(
@@ -136,9 +223,22 @@ fn finish_bounds(nodes: &mut [Node], id: usize) {
 }
 
 impl Tree {
-    /// Distances to the wood and to the (undisplaced) foliage.
+    /// Distances to the wood and to the foliage clumps.
     pub fn eval(&self, p: Vec3) -> (f32, f32) {
         let (mut wood, mut leaf) = (f32::MAX, f32::MAX);
+        if let Some((ws, ls)) = self.grid.lookup(p) {
+            for &i in ws {
+                let n = &self.nodes[i as usize];
+                wood = smin(wood, tapered_capsule(p, n.a, n.b, n.ra, n.rb), BRANCH_BLEND);
+            }
+            for &i in ls {
+                if let Some((c, r)) = self.nodes[i as usize].foliage {
+                    leaf = smin(leaf, (p - c).length() - r, LEAF_BLEND);
+                }
+            }
+            return (wood, leaf);
+        }
+        // Outside the grid: walk the bounding-sphere hierarchy.
         let mut stack = [0usize; 64];
         let mut top = 1;
         while top > 0 {
