@@ -18,8 +18,8 @@
 /// The image crate of the frame types, re-exported so users name the same version.
 pub use image;
 
-use crate::camera::{CameraError, FrameEntry, Intrinsics, Transforms};
 use crate::camera::{rows_from_mat4, Camera};
+use crate::camera::{CameraError, FrameEntry, Intrinsics, Transforms};
 use image::{DynamicImage, GrayImage, ImageFormat, RgbaImage};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -335,10 +335,11 @@ impl SceneInfo {
             path: path.to_path_buf(),
             what,
         })?;
-        let text = serde_json::to_string_pretty(self).map_err(|source| CaptureError::SceneJson {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text =
+            serde_json::to_string_pretty(self).map_err(|source| CaptureError::SceneJson {
+                path: path.to_path_buf(),
+                source,
+            })?;
         write_atomic(path, text.as_bytes())
     }
 
@@ -558,6 +559,7 @@ impl Capture {
 /// The image file of a frame: `<dir>/<file_path>.png` (or `file_path` itself
 /// when it already ends in `.png`).
 pub fn image_path(dir: &Path, file_path: &str) -> PathBuf {
+    let file_path = file_path.strip_prefix("./").unwrap_or(file_path);
     if file_path.to_ascii_lowercase().ends_with(".png") {
         dir.join(file_path)
     } else {
@@ -567,6 +569,7 @@ pub fn image_path(dir: &Path, file_path: &str) -> PathBuf {
 
 /// The mask file of a frame: `<dir>/<file_path>_mask.png`.
 pub fn mask_path(dir: &Path, file_path: &str) -> PathBuf {
+    let file_path = file_path.strip_prefix("./").unwrap_or(file_path);
     let stem = file_path
         .strip_suffix(".png")
         .or_else(|| file_path.strip_suffix(".PNG"))
@@ -606,12 +609,10 @@ fn load_frame(
     }
     let image = img.into_rgba8();
     let (w, h) = image.dimensions();
-    let camera = t
-        .camera(index, w, h)
-        .ok_or_else(|| CaptureError::Invalid {
-            path: tpath.to_path_buf(),
-            what: format!("frame {index} has no camera"),
-        })?;
+    let camera = t.camera(index, w, h).ok_or_else(|| CaptureError::Invalid {
+        path: tpath.to_path_buf(),
+        what: format!("frame {index} has no camera"),
+    })?;
     let mpath = mask_path(dir, &entry.file_path);
     let mask = if mpath.is_file() {
         let m = match decode(&mpath)? {
@@ -722,7 +723,10 @@ impl CaptureWriter {
     /// is written to the transforms files; frames whose intrinsics differ from
     /// it get per-frame `fl_x`, `fl_y`, `cx`, `cy`.
     pub fn create(dir: &Path, camera_angle_x: f64) -> Result<Self, CaptureError> {
-        if !(camera_angle_x.is_finite() && camera_angle_x > 0.0 && camera_angle_x < std::f64::consts::PI) {
+        if !(camera_angle_x.is_finite()
+            && camera_angle_x > 0.0
+            && camera_angle_x < std::f64::consts::PI)
+        {
             return Err(CaptureError::Invalid {
                 path: dir.to_path_buf(),
                 what: format!("camera_angle_x = {camera_angle_x} is not an angle in (0, π)"),
@@ -810,9 +814,7 @@ impl CaptureWriter {
             }
             match st.masks {
                 Some(m) if m != mask.is_some() => {
-                    return Err(invalid(
-                        "either every frame has a mask or none has".into(),
-                    ));
+                    return Err(invalid("either every frame has a mask or none has".into()));
                 }
                 Some(_) => {}
                 None => st.masks = Some(mask.is_some()),
@@ -829,7 +831,9 @@ impl CaptureWriter {
             }
         }
         write_png(&ipath, &DynamicImage::ImageRgba8(image.clone()))?;
-        let max_mask_value = mask.and_then(|m| m.pixels().map(|p| p.0[0]).max()).unwrap_or(0);
+        let max_mask_value = mask
+            .and_then(|m| m.pixels().map(|p| p.0[0]).max())
+            .unwrap_or(0);
         if let Some(m) = mask {
             write_png(
                 &mask_path(&self.dir, &file_path),
@@ -856,8 +860,10 @@ impl CaptureWriter {
         let k = camera.intrinsics;
         let base = Intrinsics::from_fov_x(self.camera_angle_x as f32, k.width, k.height);
         let close = |a: f32, b: f32| (a - b).abs() <= 1e-3 * (1.0 + b.abs());
-        let standard =
-            close(k.fx, base.fx) && close(k.fy, base.fy) && close(k.cx, base.cx) && close(k.cy, base.cy);
+        let standard = close(k.fx, base.fx)
+            && close(k.fy, base.fy)
+            && close(k.cx, base.cx)
+            && close(k.cy, base.cy);
         let own = |v: f32| (!standard).then_some(v as f64);
         FrameEntry {
             file_path: file_path.to_string(),
@@ -937,15 +943,27 @@ mod tests {
     use glam::Vec3;
 
     fn cam(w: u32, h: u32) -> Camera {
-        Camera::orbit(20.0, 30.0, 4.0, Vec3::ZERO, Intrinsics::from_fov_x(0.69, w, h))
+        Camera::orbit(
+            20.0,
+            30.0,
+            4.0,
+            Vec3::ZERO,
+            Intrinsics::from_fov_x(0.69, w, h),
+        )
     }
 
     #[test]
     fn mask_paths_follow_the_frame() {
         let d = Path::new("/x");
-        assert_eq!(mask_path(d, "./train/r_0"), Path::new("/x/./train/r_0_mask.png"));
-        assert_eq!(mask_path(d, "./train/r_0.png"), Path::new("/x/./train/r_0_mask.png"));
-        assert_eq!(image_path(d, "./test/r_2"), Path::new("/x/./test/r_2.png"));
+        assert_eq!(
+            mask_path(d, "./train/r_0"),
+            Path::new("/x/train/r_0_mask.png")
+        );
+        assert_eq!(
+            mask_path(d, "train/r_0.png"),
+            Path::new("/x/train/r_0_mask.png")
+        );
+        assert_eq!(image_path(d, "./test/r_2"), Path::new("/x/test/r_2.png"));
     }
 
     #[test]
@@ -957,8 +975,10 @@ mod tests {
         let c0 = cam(8, 6);
         let mut c1 = cam(8, 6);
         c1.intrinsics = c1.intrinsics.cropped(1.0, 1.0, 4.0, 3.0, 8, 6);
-        w.write_frame(Split::Train, 1, "r_1", &c1, &img, Some(&mask)).unwrap();
-        w.write_frame(Split::Train, 0, "r_0", &c0, &img, Some(&mask)).unwrap();
+        w.write_frame(Split::Train, 1, "r_1", &c1, &img, Some(&mask))
+            .unwrap();
+        w.write_frame(Split::Train, 0, "r_0", &c0, &img, Some(&mask))
+            .unwrap();
         let mut scene = SceneInfo::new(vec![ObjectInfo {
             name: "a".into(),
             kind: "ball".into(),
@@ -988,13 +1008,28 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let w = CaptureWriter::create(dir.path(), 0.69).unwrap();
         let img = RgbaImage::new(8, 8);
-        w.write_frame(Split::Train, 0, "r_0", &cam(8, 8), &img, None).unwrap();
+        w.write_frame(Split::Train, 0, "r_0", &cam(8, 8), &img, None)
+            .unwrap();
         let e = w
-            .write_frame(Split::Train, 1, "r_1", &cam(4, 4), &RgbaImage::new(4, 4), None)
+            .write_frame(
+                Split::Train,
+                1,
+                "r_1",
+                &cam(4, 4),
+                &RgbaImage::new(4, 4),
+                None,
+            )
             .unwrap_err();
         assert!(e.to_string().contains("all frames"), "{e}");
         let e = w
-            .write_frame(Split::Train, 1, "r_1", &cam(8, 8), &img, Some(&GrayImage::new(8, 8)))
+            .write_frame(
+                Split::Train,
+                1,
+                "r_1",
+                &cam(8, 8),
+                &img,
+                Some(&GrayImage::new(8, 8)),
+            )
             .unwrap_err();
         assert!(e.to_string().contains("mask"), "{e}");
         let e = w

@@ -26,21 +26,25 @@ mod tree;
 
 pub use complexity::{complexity_quads, occupancy, ranked, Occupancy, COMPLEXITY_GRID};
 pub use generate::{make_capture, view_cameras, CaptureReport, CaptureSpec};
+/// The vector type of placements and bounds.
+pub use glam::Vec3;
 pub use layout::{
     arrange, scene_info, Layout, PlacedObject, Placement, Preset, CAMERA_ANGLE_X, CAMERA_DISTANCE,
     SCENE_RADIUS,
 };
 pub use objects::{Aabb, Material, ObjectKind};
 pub use render::{RenderOptions, RenderedView, SceneRenderer};
-/// The vector type of placements and bounds.
-pub use glam::Vec3;
 
 use crate::camera::{Camera, Intrinsics};
 use image::{Rgba, RgbaImage};
 
 /// Renders placed objects from one camera (convenience for
 /// [`SceneRenderer::new`] + [`SceneRenderer::render`]).
-pub fn render_view(objects: &[PlacedObject], camera: &Camera, opts: &RenderOptions) -> RenderedView {
+pub fn render_view(
+    objects: &[PlacedObject],
+    camera: &Camera,
+    opts: &RenderOptions,
+) -> RenderedView {
     SceneRenderer::new(objects).render(camera, opts)
 }
 
@@ -50,14 +54,14 @@ pub fn render_view(objects: &[PlacedObject], camera: &Camera, opts: &RenderOptio
 /// the frame, composited over white.
 pub fn portrait(kind: ObjectKind, size: u32) -> RgbaImage {
     let objs = arrange(&[kind], Layout::Row, 0, 1.0);
-    let radius = objs[0]
-        .world_bounds()
-        .corners()
-        .iter()
-        .map(|c| c.length())
-        .fold(0.0, f32::max);
-    let fov = 2.0 * (radius / CAMERA_DISTANCE).asin() * 0.92;
-    let cam = Camera::orbit(30.0, 25.0, CAMERA_DISTANCE, Vec3::ZERO, Intrinsics::from_fov_x(fov, size, size));
+    let fov = 2.0 * (1.06 * objs[0].bounding_radius() / CAMERA_DISTANCE).asin();
+    let cam = Camera::orbit(
+        30.0,
+        25.0,
+        CAMERA_DISTANCE,
+        Vec3::ZERO,
+        Intrinsics::from_fov_x(fov, size, size),
+    );
     let v = render_view(&objs, &cam, &RenderOptions::default());
     let mut out = RgbaImage::new(size, size);
     for (o, p) in out.pixels_mut().zip(v.image.pixels()) {

@@ -134,7 +134,11 @@ pub fn occupancy(kind: ObjectKind, grid: u32) -> Occupancy {
     }
     // Half a cell reaches the cell's face; one more covers surface detail
     // thinner than a cell that the centre samples missed.
-    out.tight = if out.surface.is_empty() { b } else { out.tight.padded(1.5 * voxel) };
+    out.tight = if out.surface.is_empty() {
+        b
+    } else {
+        out.tight.padded(1.5 * voxel)
+    };
     out
 }
 
@@ -175,9 +179,16 @@ mod tests {
     fn quads_count_the_boundary_faces() {
         // The box fills almost its whole bounding cube: about 6·(cells across)² faces.
         let o = occupancy(ObjectKind::Box, 16);
-        assert!(o.quads > 0 && o.quads % 2 == 0, "a closed surface has paired faces: {}", o.quads);
+        assert!(
+            o.quads > 0 && o.quads % 2 == 0,
+            "a closed surface has paired faces: {}",
+            o.quads
+        );
         let across = (o.tight.size() / o.voxel).round();
-        assert!(o.quads as f32 <= 2.0 * (across.x * across.y + across.y * across.z + across.x * across.z));
+        assert!(
+            o.quads as f32
+                <= 2.0 * (across.x * across.y + across.y * across.z + across.x * across.z)
+        );
         // Finer grids find more faces.
         assert!(occupancy(ObjectKind::Gear, 32).quads > occupancy(ObjectKind::Gear, 16).quads);
     }
@@ -189,11 +200,17 @@ mod tests {
             let b = kind.bounds();
             let mut n = 0;
             for i in 0..4000u32 {
-                let h = |s: u32| ((i.wrapping_mul(2_654_435_761).wrapping_add(s * 97)) % 10_007) as f32 / 10_007.0;
+                let h = |s: u32| {
+                    ((i.wrapping_mul(2_654_435_761).wrapping_add(s * 97)) % 10_007) as f32
+                        / 10_007.0
+                };
                 let p = b.min + b.size() * Vec3::new(h(1), h(2), h(3));
                 if let Some(lb) = o.distance_bound(p) {
                     let d = kind.sdf(p);
-                    assert!(lb <= d + 1e-4, "{kind}: bound {lb} above distance {d} at {p}");
+                    assert!(
+                        lb <= d + 1e-4,
+                        "{kind}: bound {lb} above distance {d} at {p}"
+                    );
                     n += 1;
                 }
             }

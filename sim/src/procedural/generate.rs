@@ -1,12 +1,11 @@
 //! Built-in captures: cameras on the upper hemisphere, rendered in parallel
 //! and written in the NeRF-synthetic layout through [`CaptureWriter`].
 
-use super::layout::{scene_info, Preset, PlacedObject, CAMERA_ANGLE_X, CAMERA_DISTANCE};
+use super::layout::{scene_info, PlacedObject, Preset, CAMERA_ANGLE_X, CAMERA_DISTANCE};
 use super::render::{RenderOptions, SceneRenderer};
 use crate::camera::{Camera, Intrinsics};
 use crate::capture::{CaptureError, CaptureWriter, SceneInfo, Split};
 use glam::Vec3;
-use indicatif::ProgressBar;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -87,20 +86,31 @@ pub fn view_cameras(count: usize, seed: u64, split: Split, size: u32) -> Vec<Cam
 
 /// Renders every view of `spec` in parallel and writes the capture to `out`
 /// (PNG frames and masks as they finish, then the transforms and
-/// `scene.json`). `progress` advances once per view.
-pub fn make_capture(spec: &CaptureSpec, out: &Path, progress: &ProgressBar) -> Result<CaptureReport, CaptureError> {
+/// `scene.json`). `on_view` is called once per finished view (from any
+/// thread), e.g. to advance a progress bar.
+pub fn make_capture(
+    spec: &CaptureSpec,
+    out: &Path,
+    on_view: &(dyn Fn() + Sync),
+) -> Result<CaptureReport, CaptureError> {
     let invalid = |what: String| CaptureError::Invalid {
         path: out.to_path_buf(),
         what,
     };
     if spec.objects.is_empty() || spec.objects.len() > 255 {
-        return Err(invalid(format!("{} objects; a scene holds 1 to 255", spec.objects.len())));
+        return Err(invalid(format!(
+            "{} objects; a scene holds 1 to 255",
+            spec.objects.len()
+        )));
     }
     if spec.train_views == 0 {
         return Err(invalid("no training views requested".into()));
     }
     if !(8..=8192).contains(&spec.size) {
-        return Err(invalid(format!("image size {} is outside 8..=8192 pixels", spec.size)));
+        return Err(invalid(format!(
+            "image size {} is outside 8..=8192 pixels",
+            spec.size
+        )));
     }
     let start = Instant::now();
     let scene = scene_info(&spec.objects, &spec.layout, spec.seed, spec.preset);
@@ -112,15 +122,24 @@ pub fn make_capture(spec: &CaptureSpec, out: &Path, progress: &ProgressBar) -> R
             Split::Train => spec.train_views,
             Split::Test => spec.test_views,
         };
-        for (i, c) in view_cameras(n, spec.seed, split, spec.size).into_iter().enumerate() {
+        for (i, c) in view_cameras(n, spec.seed, split, spec.size)
+            .into_iter()
+            .enumerate()
+        {
             jobs.push((split, i, c));
         }
     }
-    progress.set_length(jobs.len() as u64);
     jobs.par_iter().try_for_each(|(split, i, cam)| {
         let view = renderer.render(cam, &spec.render);
-        writer.write_frame(*split, *i, &format!("r_{i}"), cam, &view.image, Some(&view.mask))?;
-        progress.inc(1);
+        writer.write_frame(
+            *split,
+            *i,
+            &format!("r_{i}"),
+            cam,
+            &view.image,
+            Some(&view.mask),
+        )?;
+        on_view();
         Ok::<(), CaptureError>(())
     })?;
     let dir = writer.finish(Some(&scene))?;
@@ -144,7 +163,10 @@ mod tests {
             let p = c.position();
             assert!((p.length() - CAMERA_DISTANCE).abs() < 1e-3);
             let el = (p.z / p.length()).asin().to_degrees();
-            assert!((MIN_ELEVATION_DEG - 0.01..=MAX_ELEVATION_DEG + 0.01).contains(&el), "{el}");
+            assert!(
+                (MIN_ELEVATION_DEG - 0.01..=MAX_ELEVATION_DEG + 0.01).contains(&el),
+                "{el}"
+            );
             let (x, y, _) = c.project(Vec3::ZERO).unwrap();
             assert!((x - 50.0).abs() < 1e-3 && (y - 50.0).abs() < 1e-3);
         }

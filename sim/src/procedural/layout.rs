@@ -16,7 +16,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// Camera distance from the origin, as in NeRF-synthetic (4.0311 units).
-pub const CAMERA_DISTANCE: f32 = 4.031_128_9;
+pub const CAMERA_DISTANCE: f32 = 4.031_129;
 /// Horizontal field of view of NeRF-synthetic (radians).
 pub const CAMERA_ANGLE_X: f64 = 0.691_111_207_008_361_8;
 /// Radius about the origin the scene is scaled into. A sphere of radius r
@@ -118,6 +118,27 @@ impl PlacedObject {
         b.padded(pad)
     }
 
+    /// Radius about the world origin of a sphere holding the whole object
+    /// (its surface cells at the complexity grid, placed, plus their reach).
+    pub fn bounding_radius(&self) -> f32 {
+        let occ = stats(self.kind);
+        let pad = occ.voxel * (0.5 * 3f32.sqrt() + 1.0) * self.placement.scale;
+        if occ.surface.is_empty() {
+            return self
+                .kind
+                .bounds()
+                .corners()
+                .iter()
+                .map(|&c| self.placement.to_world(c).length())
+                .fold(0.0, f32::max);
+        }
+        occ.surface
+            .iter()
+            .map(|&c| self.placement.to_world(c).length())
+            .fold(0.0, f32::max)
+            + pad
+    }
+
     /// As recorded in `scene.json`; `index` is its position in the scene.
     pub fn to_info(&self, index: usize) -> ObjectInfo {
         let b = self.world_bounds();
@@ -188,7 +209,12 @@ pub const SCENE3_SEED: u64 = 3;
 
 impl Preset {
     /// All presets.
-    pub const ALL: [Preset; 4] = [Preset::Scene1, Preset::Scene2, Preset::Scene3, Preset::Scene4];
+    pub const ALL: [Preset; 4] = [
+        Preset::Scene1,
+        Preset::Scene2,
+        Preset::Scene3,
+        Preset::Scene4,
+    ];
 
     /// The flag value (`scene1` …).
     pub fn name(self) -> &'static str {
@@ -349,8 +375,7 @@ pub fn fit(objects: &mut [PlacedObject]) {
     }
     let radius = objects
         .iter()
-        .flat_map(|o| o.world_bounds().corners())
-        .map(|c| c.length())
+        .map(|o| o.bounding_radius())
         .fold(0.0, f32::max);
     if radius > SCENE_RADIUS {
         let s = SCENE_RADIUS / radius;
@@ -362,8 +387,19 @@ pub fn fit(objects: &mut [PlacedObject]) {
 }
 
 /// The `scene.json` of these objects.
-pub fn scene_info(objects: &[PlacedObject], layout: &str, seed: u64, preset: Option<Preset>) -> SceneInfo {
-    let mut s = SceneInfo::new(objects.iter().enumerate().map(|(i, o)| o.to_info(i)).collect());
+pub fn scene_info(
+    objects: &[PlacedObject],
+    layout: &str,
+    seed: u64,
+    preset: Option<Preset>,
+) -> SceneInfo {
+    let mut s = SceneInfo::new(
+        objects
+            .iter()
+            .enumerate()
+            .map(|(i, o)| o.to_info(i))
+            .collect(),
+    );
     s.layout = Some(layout.into());
     s.seed = Some(seed);
     s.preset = preset.map(|p| p.name().into());
@@ -389,22 +425,39 @@ mod tests {
 
     #[test]
     fn layouts_fit_the_view_sphere_without_overlap() {
-        let kinds = [ObjectKind::Gear, ObjectKind::Ball, ObjectKind::Tree, ObjectKind::Ball, ObjectKind::TextPanel];
+        let kinds = [
+            ObjectKind::Gear,
+            ObjectKind::Ball,
+            ObjectKind::Tree,
+            ObjectKind::Ball,
+            ObjectKind::TextPanel,
+        ];
         for layout in [Layout::Row, Layout::Ring, Layout::Random] {
             let objs = arrange(&kinds, layout, 11, 1.0);
             assert_eq!(objs[3].name, "ball-2");
-            let bounds: Vec<Aabb> = objs.iter().map(|o| o.world_bounds()).collect();
-            for b in &bounds {
-                for c in b.corners() {
-                    assert!(c.length() <= SCENE_RADIUS + 1e-3, "{layout:?} {c}");
+            for o in &objs {
+                let r = o.bounding_radius();
+                assert!(r <= SCENE_RADIUS + 1e-3, "{layout:?} {}", o.name);
+                // The sphere holds the whole surface.
+                for &c in &stats(o.kind).surface {
+                    assert!(o.placement.to_world(c).length() <= r);
                 }
             }
-            // Footprints do not overlap: world boxes of different objects
-            // may touch in a corner only when turned, so check centres' gap.
-            for i in 0..objs.len() {
-                for j in i + 1..objs.len() {
-                    let d = (objs[i].placement.translation - objs[j].placement.translation).truncate().length();
-                    assert!(d > 0.05, "{layout:?} {i} {j}");
+            // Objects do not intersect: no surface cell of one lies inside another.
+            for a in &objs {
+                for b in &objs {
+                    if a.name == b.name {
+                        continue;
+                    }
+                    for &c in stats(a.kind).surface.iter().step_by(5) {
+                        let p = b.placement.to_local(a.placement.to_world(c));
+                        assert!(
+                            b.kind.sdf(p) > -0.01,
+                            "{layout:?}: {} inside {}",
+                            a.name,
+                            b.name
+                        );
+                    }
                 }
             }
         }

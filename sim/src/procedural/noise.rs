@@ -17,7 +17,9 @@ pub fn hash_u32(mut x: u32) -> u32 {
 /// Hash of a lattice point.
 #[inline]
 pub fn hash3(i: IVec3) -> u32 {
-    hash_u32((i.x as u32) ^ hash_u32((i.y as u32) ^ hash_u32((i.z as u32).wrapping_add(0x9e37_79b9))))
+    hash_u32(
+        (i.x as u32) ^ hash_u32((i.y as u32) ^ hash_u32((i.z as u32).wrapping_add(0x9e37_79b9))),
+    )
 }
 
 /// Hash of a lattice point as a float in [0, 1).

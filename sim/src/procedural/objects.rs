@@ -228,18 +228,18 @@ impl ObjectKind {
     /// [`ObjectKind::material`] multiplies it).
     pub fn texture_frequency(self) -> f32 {
         match self {
-            ObjectKind::Ball => 1.3,   // 6 gores around a 4.7-unit girth
-            ObjectKind::Vase => 0.5,   // plain glaze, slow gradient
-            ObjectKind::Box => 6.0,    // grain rings
-            ObjectKind::Pawn => 3.0,   // marble veins
-            ObjectKind::Torus => 14.0, // sprinkles
-            ObjectKind::Mug => 5.0,    // polka dots
+            ObjectKind::Ball => 1.3,       // 6 gores around a 4.7-unit girth
+            ObjectKind::Vase => 0.5,       // plain glaze, slow gradient
+            ObjectKind::Box => 6.0,        // grain rings
+            ObjectKind::Pawn => 3.0,       // marble veins
+            ObjectKind::Torus => 14.0,     // sprinkles
+            ObjectKind::Mug => 5.0,        // polka dots
             ObjectKind::TextPanel => 25.0, // character pitch of the small text
-            ObjectKind::Spring => 2.0, // plate brushing, plain steel
-            ObjectKind::Gear => 8.0,   // machining rings
-            ObjectKind::Tree => 80.0,  // leaf veining (leaf balls: 20 per unit)
-            ObjectKind::Lattice => 1.0, // one colour per rod axis
-            ObjectKind::Sponge => 10.0, // sandstone grain
+            ObjectKind::Spring => 2.0,     // plate brushing, plain steel
+            ObjectKind::Gear => 8.0,       // machining rings
+            ObjectKind::Tree => 80.0,      // leaf veining (leaf balls: 20 per unit)
+            ObjectKind::Lattice => 1.0,    // one colour per rod axis
+            ObjectKind::Sponge => 10.0,    // sandstone grain
         }
     }
 
@@ -453,7 +453,8 @@ fn donut_mat(p: Vec3, f: f32) -> Material {
     if p.z > frosting_edge(p) + 0.01 {
         let (d, h) = cellular(p * (14.0 * f));
         if d < 0.2 {
-            const SPRINKLES: [u32; 6] = [0xfff5e1, 0x3b82f6, 0xfacc15, 0x22c55e, 0xef4444, 0xa855f7];
+            const SPRINKLES: [u32; 6] =
+                [0xfff5e1, 0x3b82f6, 0xfacc15, 0x22c55e, 0xef4444, 0xa855f7];
             return mat(rgb(SPRINKLES[(h % 6) as usize]), 0.4, 60.0);
         }
         let c = rgb(0xf29bb8) * (0.95 + 0.05 * value(p * 9.0));
@@ -508,12 +509,23 @@ fn mug_mat(p: Vec3, f: f32) -> Material {
 /// Sign distance and part (0 frame/legs, 1 printed board).
 fn text_panel(p: Vec3) -> (f32, u8) {
     let c = p - Vec3::new(0.0, 0.0, 0.2);
-    let frame = round_box(c, Vec3::new(0.86, 0.06, 0.58), 0.02)
-        .max(-round_box(c, Vec3::new(0.78, 0.2, 0.5), 0.0));
+    let frame = round_box(c, Vec3::new(0.86, 0.06, 0.58), 0.02).max(-round_box(
+        c,
+        Vec3::new(0.78, 0.2, 0.5),
+        0.0,
+    ));
     let board = round_box(c, Vec3::new(0.8, 0.03, 0.52), 0.005);
     let sx = Vec3::new(p.x.abs(), p.y, p.z);
-    let leg = round_box(sx - Vec3::new(0.55, 0.0, -0.55), Vec3::new(0.035, 0.035, 0.2), 0.01);
-    let foot = round_box(sx - Vec3::new(0.55, 0.0, -0.76), Vec3::new(0.05, 0.22, 0.025), 0.01);
+    let leg = round_box(
+        sx - Vec3::new(0.55, 0.0, -0.55),
+        Vec3::new(0.035, 0.035, 0.2),
+        0.01,
+    );
+    let foot = round_box(
+        sx - Vec3::new(0.55, 0.0, -0.76),
+        Vec3::new(0.05, 0.22, 0.025),
+        0.01,
+    );
     let wood = frame.min(leg).min(foot);
     if board < wood {
         (board, 1)
@@ -602,7 +614,14 @@ fn spring_mat(p: Vec3, f: f32) -> Material {
 
 // ---------------------------------------------------------------- gear
 
-fn gear_profile(q: Vec2, root: f32, tip: f32, teeth: u32, hole: f32, windows: Option<(u32, f32, f32)>) -> f32 {
+fn gear_profile(
+    q: Vec2,
+    root: f32,
+    tip: f32,
+    teeth: u32,
+    hole: f32,
+    windows: Option<(u32, f32, f32)>,
+) -> f32 {
     let (t, _) = polar_fold(q, teeth);
     let depth = tip - root;
     let sector = TAU / teeth as f32;
@@ -618,7 +637,10 @@ fn gear_profile(q: Vec2, root: f32, tip: f32, teeth: u32, hole: f32, windows: Op
     d = d.max(hole - q.length());
     if let Some((n, ring, r)) = windows {
         let rot = PI / n as f32;
-        let q2 = Vec2::new(q.x * rot.cos() - q.y * rot.sin(), q.x * rot.sin() + q.y * rot.cos());
+        let q2 = Vec2::new(
+            q.x * rot.cos() - q.y * rot.sin(),
+            q.x * rot.sin() + q.y * rot.cos(),
+        );
         let (w, _) = polar_fold(q2, n);
         d = d.max(r - (w - Vec2::new(ring, 0.0)).length());
     }
@@ -637,9 +659,24 @@ fn hexagon(q: Vec2, r: f32) -> f32 {
 fn gear(p: Vec3) -> (f32, u8) {
     let q = p.xy();
     // Profiles are eroded by 0.01 and re-grown after extrusion: rounded edges.
-    let bottom = extrude(gear_profile(q, 0.68, 0.87, 36, 0.1, Some((8, 0.44, 0.11))) + 0.01, p.z, -0.44, -0.18) - 0.01;
-    let middle = extrude(gear_profile(q, 0.46, 0.61, 24, 0.1, Some((6, 0.29, 0.07))) + 0.01, p.z, -0.14, 0.1) - 0.01;
-    let top = extrude(gear_profile(q, 0.25, 0.36, 14, 0.1, None) + 0.01, p.z, 0.14, 0.34) - 0.01;
+    let bottom = extrude(
+        gear_profile(q, 0.68, 0.87, 36, 0.1, Some((8, 0.44, 0.11))) + 0.01,
+        p.z,
+        -0.44,
+        -0.18,
+    ) - 0.01;
+    let middle = extrude(
+        gear_profile(q, 0.46, 0.61, 24, 0.1, Some((6, 0.29, 0.07))) + 0.01,
+        p.z,
+        -0.14,
+        0.1,
+    ) - 0.01;
+    let top = extrude(
+        gear_profile(q, 0.25, 0.36, 14, 0.1, None) + 0.01,
+        p.z,
+        0.14,
+        0.34,
+    ) - 0.01;
     let axle = cylinder_z(p, 0.1, -0.47, 0.36, 0.01);
     let nut = extrude(hexagon(q, 0.15) + 0.01, p.z, 0.34, 0.44) - 0.01;
     let parts = [bottom, middle, top, axle.min(nut)];
@@ -830,16 +867,25 @@ mod tests {
                                     p.y = b.min.y + (b.max.y - b.min.y) * v;
                                 }
                             }
-                            assert!(kind.sdf(p) > 0.0, "{kind}: surface reaches the bounds at {p}");
+                            assert!(
+                                kind.sdf(p) > 0.0,
+                                "{kind}: surface reaches the bounds at {p}"
+                            );
                         }
                     }
                     let c = b.center() + 0.5 * (b.max - b.min) * Vec3::new(u - 0.5, v - 0.5, 0.0);
                     inside_seen |= kind.sdf(c) < 0.0;
                 }
             }
-            assert!(inside_seen || kind == ObjectKind::Lattice, "{kind}: nothing inside");
+            assert!(
+                inside_seen || kind == ObjectKind::Lattice,
+                "{kind}: nothing inside"
+            );
             // Fits the unit-cube convention.
-            assert!(b.min.cmpge(Vec3::splat(-1.0)).all() && b.max.cmple(Vec3::splat(1.0)).all(), "{kind} {b:?}");
+            assert!(
+                b.min.cmpge(Vec3::splat(-1.0)).all() && b.max.cmple(Vec3::splat(1.0)).all(),
+                "{kind} {b:?}"
+            );
         }
     }
 
@@ -848,9 +894,16 @@ mod tests {
         for kind in ObjectKind::ALL {
             assert_eq!(kind.name().parse::<ObjectKind>(), Ok(kind));
             for k in 0..50 {
-                let p = Vec3::new((k as f32 * 0.71).sin(), (k as f32 * 1.3).cos(), (k as f32 * 0.37).sin()) * 0.7;
+                let p = Vec3::new(
+                    (k as f32 * 0.71).sin(),
+                    (k as f32 * 1.3).cos(),
+                    (k as f32 * 0.37).sin(),
+                ) * 0.7;
                 let m = kind.material(p, Vec3::Z, 1.0);
-                assert!(m.albedo.cmpge(Vec3::ZERO).all() && m.albedo.cmple(Vec3::splat(1.2)).all(), "{kind} {m:?}");
+                assert!(
+                    m.albedo.cmpge(Vec3::ZERO).all() && m.albedo.cmple(Vec3::splat(1.2)).all(),
+                    "{kind} {m:?}"
+                );
             }
         }
         assert!("teapot".parse::<ObjectKind>().unwrap_err().contains("gear"));

@@ -18,8 +18,8 @@
 //!   `texture_samples²`. Alpha is the fraction of rays that hit, colour the
 //!   mean of the hits (straight alpha), the mask value the object most rays hit.
 
-use super::layout::{Placement, PlacedObject};
 use super::complexity::{stats, Occupancy};
+use super::layout::{PlacedObject, Placement};
 use super::objects::{Aabb, ObjectKind};
 use crate::camera::Camera;
 use glam::Vec3;
@@ -100,7 +100,10 @@ struct Light {
 
 impl Default for Light {
     fn default() -> Self {
-        Self { ao: 1.0, shadow: 1.0 }
+        Self {
+            ao: 1.0,
+            shadow: 1.0,
+        }
     }
 }
 
@@ -108,7 +111,8 @@ struct Hit {
     obj: usize,
     /// Local hit point.
     p: Vec3,
-    /// Hit tolerance (local units), reused as the normal's difference step.
+    /// Half the pixel footprint at the hit (local units): the normal's
+    /// difference step and the shadow ray's offset scale.
     eps: f32,
 }
 
@@ -159,7 +163,8 @@ impl SceneRenderer {
             .enumerate()
             .for_each(|(y, ((lrow, irow), grow))| {
                 for x in 0..w {
-                    let (c, id, l) = self.sample(camera, x as f32 + 0.5, y as f32 + 0.5, pix, opts, None);
+                    let (c, id, l) =
+                        self.sample(camera, x as f32 + 0.5, y as f32 + 0.5, pix, opts, None);
                     lrow[x] = c;
                     irow[x] = id;
                     grow[x] = l;
@@ -218,7 +223,9 @@ impl SceneRenderer {
                     } else {
                         let alpha = hits as f32 / total as f32;
                         px.push(to_rgba8(display(sum / hits as f32), alpha));
-                        let best = (1..256).max_by_key(|&v| (counts[v], std::cmp::Reverse(v))).unwrap_or(0);
+                        let best = (1..256)
+                            .max_by_key(|&v| (counts[v], std::cmp::Reverse(v)))
+                            .unwrap_or(0);
                         mk.push(best as u8);
                     }
                 }
@@ -315,28 +322,44 @@ impl SceneRenderer {
             if let Some((t, eps)) = march(ob, ro, rd, t0w / s, t1, pix) {
                 let tw = t * s;
                 if best.as_ref().is_none_or(|(bt, _)| tw < *bt) {
-                    best = Some((tw, Hit { obj: i, p: ro + rd * t, eps }));
+                    best = Some((
+                        tw,
+                        Hit {
+                            obj: i,
+                            p: ro + rd * t,
+                            eps,
+                        },
+                    ));
                 }
             }
         }
         best.map(|(_, h)| h)
     }
 
-    fn shade(&self, hit: &Hit, d: Vec3, opts: &RenderOptions, known: Option<Light>) -> (Vec3, Light) {
+    fn shade(
+        &self,
+        hit: &Hit,
+        d: Vec3,
+        opts: &RenderOptions,
+        known: Option<Light>,
+    ) -> (Vec3, Light) {
         let ob = &self.objects[hit.obj];
         let nl = normal(ob.kind, hit.p, hit.eps.max(4e-4));
         let m = ob.kind.material(hit.p, nl, ob.detail);
         let n = ob.placement.dir_to_world(nl);
         let v = -d;
         let pw = ob.placement.to_world(hit.p);
-        let Light { ao, shadow: key_shadow } = known.unwrap_or_else(|| Light {
+        let Light {
+            ao,
+            shadow: key_shadow,
+        } = known.unwrap_or_else(|| Light {
             ao: if opts.ambient_occlusion {
                 ambient_occlusion(ob, hit.p, nl)
             } else {
                 1.0
             },
             shadow: if opts.shadows && n.dot(KEY_DIR) > 0.0 {
-                let bias = (3.0 * hit.eps).max(2e-3) * ob.placement.scale;
+                let bias = hit.eps.max(2e-3) * ob.placement.scale;
                 self.soft_shadow(pw + n * bias, KEY_DIR)
             } else {
                 1.0
@@ -347,7 +370,11 @@ impl SceneRenderer {
         let norm = (m.shininess + 8.0) / (8.0 * std::f32::consts::PI);
         let mut diffuse = Vec3::ZERO;
         let mut spec = Vec3::ZERO;
-        for (l, c, sh) in [(KEY_DIR, KEY_RGB, key_shadow), (FILL_DIR, FILL_RGB, 1.0), (RIM_DIR, RIM_RGB, 1.0)] {
+        for (l, c, sh) in [
+            (KEY_DIR, KEY_RGB, key_shadow),
+            (FILL_DIR, FILL_RGB, 1.0),
+            (RIM_DIR, RIM_RGB, 1.0),
+        ] {
             let ndl = n.dot(l).max(0.0);
             if ndl <= 0.0 {
                 continue;
@@ -365,7 +392,13 @@ impl SceneRenderer {
         let env = GROUND.lerp(SKY, 0.5 + 0.5 * r.z) * ao * gloss;
         let env_w = spec_rgb + (Vec3::ONE - spec_rgb) * fresnel * m.specular.max(0.04);
         let c = diffuse_rgb * (diffuse + ambient) + spec_rgb * spec + env * env_w;
-        (c, Light { ao, shadow: key_shadow })
+        (
+            c,
+            Light {
+                ao,
+                shadow: key_shadow,
+            },
+        )
     }
 
     /// Key-light visibility from world point `p` along `l`: 0 shadowed,
@@ -406,18 +439,21 @@ fn march(ob: &Prepared, ro: Vec3, rd: Vec3, t0: f32, t1: f32, pix: f32) -> Optio
     let mut last = (f32::MAX, 0.0);
     for _ in 0..MAX_STEPS {
         let d = ob.dist(ro + rd * t);
-        let eps = (0.5 * pix * t).max(1e-4);
+        // A fifth of the pixel footprint: a looser test would swell
+        // silhouettes by the tolerance. The footprint is returned for the
+        // normal's difference step (smooth at the image's resolution).
+        let eps = (0.2 * pix * t).max(1e-4);
         if d < eps {
-            return Some((t, eps));
+            return Some((t, 2.5 * eps));
         }
-        last = (d, eps);
+        last = (d, 2.5 * eps);
         t += d * step;
         if t > t1 {
             return None;
         }
     }
     // Out of steps while grazing a surface: close enough counts as a hit.
-    (last.0 < 4.0 * last.1).then_some((t, last.1))
+    (last.0 < last.1).then_some((t, last.1))
 }
 
 /// Unit normal by the tetrahedral difference of the distance (step `h`).
@@ -429,7 +465,9 @@ fn normal(kind: ObjectKind, p: Vec3, h: f32) -> Vec3 {
         Vec3::new(-1.0, 1.0, -1.0),
         Vec3::new(1.0, 1.0, 1.0),
     ];
-    let g = k.iter().fold(Vec3::ZERO, |acc, &e| acc + e * kind.sdf(p + e * h));
+    let g = k
+        .iter()
+        .fold(Vec3::ZERO, |acc, &e| acc + e * kind.sdf(p + e * h));
     g.normalize_or(Vec3::Z)
 }
 
@@ -477,7 +515,13 @@ mod tests {
     fn a_ball_renders_as_a_disc_with_soft_edges() {
         let objs = arrange(&[ObjectKind::Ball], Layout::Row, 0, 1.0);
         let r = SceneRenderer::new(&objs);
-        let cam = Camera::orbit(30.0, 20.0, 4.0, Vec3::ZERO, Intrinsics::from_fov_x(0.69, 48, 48));
+        let cam = Camera::orbit(
+            30.0,
+            20.0,
+            4.0,
+            Vec3::ZERO,
+            Intrinsics::from_fov_x(0.69, 48, 48),
+        );
         let v = r.render(&cam, &RenderOptions::default());
         // The centre is opaque object 1, the corners background.
         assert_eq!(v.image.get_pixel(24, 24).0[3], 255);
@@ -485,7 +529,11 @@ mod tests {
         assert_eq!(v.image.get_pixel(0, 0).0, [0, 0, 0, 0]);
         assert_eq!(v.mask.get_pixel(0, 0).0[0], 0);
         // Some silhouette pixels are partially covered, and mask > 0 exactly where alpha > 0.
-        let partial = v.image.pixels().filter(|p| p.0[3] > 0 && p.0[3] < 255).count();
+        let partial = v
+            .image
+            .pixels()
+            .filter(|p| p.0[3] > 0 && p.0[3] < 255)
+            .count();
         assert!(partial > 20, "{partial}");
         for (p, m) in v.image.pixels().zip(v.mask.pixels()) {
             assert_eq!(p.0[3] > 0, m.0[0] > 0);
@@ -494,7 +542,10 @@ mod tests {
         let covered: f32 = v.image.pixels().map(|p| p.0[3] as f32 / 255.0).sum();
         let fx = cam.intrinsics.fx;
         let expect = std::f32::consts::PI * (fx * (0.75f32 / (16.0f32 - 0.5625).sqrt())).powi(2);
-        assert!((covered - expect).abs() / expect < 0.05, "{covered} vs {expect}");
+        assert!(
+            (covered - expect).abs() / expect < 0.05,
+            "{covered} vs {expect}"
+        );
     }
 
     #[test]
@@ -511,7 +562,15 @@ mod tests {
             let v = r.render(&cam, &RenderOptions::default());
             colours.push(v.image.get_pixel(x as u32, y as u32).0);
         }
-        let diff = |a: [u8; 4], b: [u8; 4]| (0..3).map(|i| (a[i] as i32 - b[i] as i32).abs()).max().unwrap();
-        assert!(diff(colours[0], colours[2]) > 3 || diff(colours[0], colours[1]) > 3, "{colours:?}");
+        let diff = |a: [u8; 4], b: [u8; 4]| {
+            (0..3)
+                .map(|i| (a[i] as i32 - b[i] as i32).abs())
+                .max()
+                .unwrap()
+        };
+        assert!(
+            diff(colours[0], colours[2]) > 3 || diff(colours[0], colours[1]) > 3,
+            "{colours:?}"
+        );
     }
 }

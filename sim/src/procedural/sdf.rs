@@ -103,7 +103,10 @@ mod tests {
         assert!((round_box(Vec3::new(0.0, 0.0, 3.0), Vec3::ONE, 0.0) - 2.0).abs() < 1e-6);
         assert!(round_box(Vec3::ZERO, Vec3::ONE, 0.1) < 0.0);
         assert!((torus_z(Vec3::new(1.0, 0.0, 0.5), 1.0, 0.25) - 0.25).abs() < 1e-6);
-        assert!((tapered_capsule(Vec3::new(0.0, 1.0, 0.5), Vec3::ZERO, Vec3::Z, 0.5, 0.5) - 0.5).abs() < 1e-6);
+        assert!(
+            (tapered_capsule(Vec3::new(0.0, 1.0, 0.5), Vec3::ZERO, Vec3::Z, 0.5, 0.5) - 0.5).abs()
+                < 1e-6
+        );
         assert!((cylinder_z(Vec3::new(0.0, 0.0, 2.0), 1.0, -1.0, 1.0, 0.0) - 1.0).abs() < 1e-6);
         assert!((trapezoid(Vec2::new(0.0, 2.0), 1.0, 0.5, 1.0) - 1.0).abs() < 1e-6);
         assert!(trapezoid(Vec2::ZERO, 1.0, 0.5, 1.0) < 0.0);

@@ -76,19 +76,11 @@ fn draw_page() -> Page {
     let (w, h) = (240u32, 176u32);
     let mut ink = vec![0u8; (w * h) as usize];
     let mut red = vec![0u8; (w * h) as usize];
-    let mut layer = Layer {
-        w,
-        h,
-        px: &mut red,
-    };
+    let mut layer = Layer { w, h, px: &mut red };
     let big = MonoTextStyle::new(&FONT_10X20, BinaryColor::On);
     // Drawing into memory cannot fail (the error type is Infallible).
     let _ = Text::with_baseline(HEADLINE, Point::new(85, 4), big, Baseline::Top).draw(&mut layer);
-    let mut layer = Layer {
-        w,
-        h,
-        px: &mut ink,
-    };
+    let mut layer = Layer { w, h, px: &mut ink };
     let small = MonoTextStyle::new(&FONT_6X10, BinaryColor::On);
     for (i, line) in BODY.iter().enumerate() {
         let y = 30 + 11 * i as i32;

@@ -57,13 +57,11 @@ fn grow() -> Tree {
         0.52,
         0.095,
     );
+    fit_unit_cube(&mut nodes);
     finish_bounds(&mut nodes, 0);
     let (mut min, mut max) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
     for n in &nodes {
-        for (c, r) in [(n.a, n.ra), (n.b, n.rb)]
-            .into_iter()
-            .chain(n.foliage)
-        {
+        for (c, r) in [(n.a, n.ra), (n.b, n.rb)].into_iter().chain(n.foliage) {
             min = min.min(c - Vec3::splat(r));
             max = max.max(c + Vec3::splat(r));
         }
@@ -168,8 +166,8 @@ fn branch(
     let b = a + dir * len;
     let rb = ra * 0.7;
     let id = nodes.len();
-    let foliage = (depth >= MAX_DEPTH - 1).then(|| {
-        let r = if depth == MAX_DEPTH { 0.12 } else { 0.1 };
+    let foliage = (depth + 2 >= MAX_DEPTH).then(|| {
+        let r = 0.08 + 0.02 * (depth + 2 - MAX_DEPTH) as f32;
         (b + dir * 0.05, r + rng.random_range(0.0..0.04))
     });
     nodes.push(Node {
@@ -183,13 +181,18 @@ fn branch(
         children: Vec::new(),
     });
     if depth < MAX_DEPTH {
-        let n = if depth == 0 { 3 } else { rng.random_range(2..=3) };
+        let n = if depth == 0 {
+            3
+        } else {
+            rng.random_range(2..=3)
+        };
         let phase: f32 = rng.random_range(0.0..std::f32::consts::TAU);
         // Any vector not parallel to dir gives a perpendicular axis family.
         let side = if dir.z.abs() < 0.9 { Vec3::Z } else { Vec3::X };
         let perp = dir.cross(side).normalize();
         for k in 0..n {
-            let az = phase + k as f32 * std::f32::consts::TAU / n as f32 + rng.random_range(-0.3..0.3);
+            let az =
+                phase + k as f32 * std::f32::consts::TAU / n as f32 + rng.random_range(-0.3..0.3);
             let tilt = rng.random_range(0.45..0.75f32);
             let axis = Quat::from_axis_angle(dir, az) * perp;
             let mut d = Quat::from_axis_angle(axis, tilt) * dir;
@@ -201,6 +204,34 @@ fn branch(
         }
     }
     id
+}
+
+/// Shrinks the grown tree about its trunk base so wood and foliage stay
+/// inside x, y, z ≤ 0.95 (the unit-cube convention with a margin).
+fn fit_unit_cube(nodes: &mut [Node]) {
+    let base = nodes.first().map_or(Vec3::ZERO, |n| n.a);
+    let mut s = 1.0f32;
+    for n in nodes.iter() {
+        for (c, r) in [(n.a, n.ra), (n.b, n.rb)].into_iter().chain(n.foliage) {
+            let d = c - base;
+            for (v, room) in [
+                (d.x.abs() + r, 0.95),
+                (d.y.abs() + r, 0.95),
+                (d.z + r, 0.95 - base.z),
+            ] {
+                if v > room {
+                    s = s.min(room / v);
+                }
+            }
+        }
+    }
+    for n in nodes.iter_mut() {
+        n.a = base + (n.a - base) * s;
+        n.b = base + (n.b - base) * s;
+        n.ra *= s;
+        n.rb *= s;
+        n.foliage = n.foliage.map(|(c, r)| (base + (c - base) * s, r * s));
+    }
 }
 
 /// Bounding sphere of each subtree, children first.
