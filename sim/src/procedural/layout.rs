@@ -315,7 +315,7 @@ pub fn arrange(kinds: &[ObjectKind], layout: Layout, seed: u64, detail: f32) -> 
             }
         }
         (_, Layout::Random) => {
-            let mut radius = foot.iter().sum::<f32>() * 0.8;
+            let mut radius = foot.iter().sum::<f32>() * 0.45;
             for i in 0..n {
                 let mut tries = 0;
                 loop {
