@@ -11,7 +11,8 @@ fn args(capture: Option<&Path>, out: &Path) -> Args {
         compose: Vec::new(),
         size: None,
         alpha: None,
-        energy_share: 0.9,
+        energy_share: 0.75,
+        band: 32.0,
         min_pixels: 64,
         margin: 0.0,
         filter: Filter::Lanczos3,
@@ -37,6 +38,9 @@ fn bad_flags_and_inputs_are_clear_errors() {
     let mut a = args(Some(&missing), &out);
     a.energy_share = 1.5;
     assert!(error_of(a).contains("--energy-share"));
+    let mut a = args(Some(&missing), &out);
+    a.band = 0.0;
+    assert!(error_of(a).contains("--band"));
     let mut a = args(Some(&missing), &out);
     a.margin = -0.1;
     assert!(error_of(a).contains("--margin"));
@@ -104,6 +108,7 @@ fn the_table_lists_objects_by_decreasing_frequency_with_decisions() {
 
 #[test]
 fn a_colour_mask_or_a_label_without_an_object_is_refused_naming_the_file() {
+    use nerflex_sim::capture::SceneInfo;
     use nerflex_sim::segment::SegCapture;
     let cap = sphere_capture(&ring_of_five(), 2, 0, 96);
     let dir = tempfile::tempdir().unwrap();
@@ -117,16 +122,22 @@ fn a_colour_mask_or_a_label_without_an_object_is_refused_naming_the_file() {
     )
     .unwrap();
     let shared = dir.path().join(&seg.groups[0].folder);
-    // Masks with labels 1..5 and no scene.json: five unnamed objects.
-    assert_eq!(SegCapture::load(&shared).unwrap().objects.len(), 5);
+    let names = ["s01", "s03", "s06", "s12", "s24"];
+    assert_eq!(SegCapture::load(&shared).unwrap().objects, names);
     // scene.json naming fewer objects than the masks use.
-    std::fs::write(shared.join("scene.json"), r#"{"objects": [{"name": "a"}]}"#).unwrap();
+    let scene_path = shared.join("scene.json");
+    let mut scene = SceneInfo::read(&scene_path).unwrap();
+    scene.objects.truncate(1);
+    scene.write(&scene_path).unwrap();
     let e = SegCapture::load(&shared).unwrap_err().to_string();
-    assert!(e.contains("mask label") && e.contains("1 object"), "{e}");
-    std::fs::write(shared.join("scene.json"), r#"{"objects": [{"nom": "a"}]}"#).unwrap();
+    assert!(e.contains("mask value") && e.contains("scene.json"), "{e}");
+    std::fs::write(&scene_path, r#"{"objects": [{"nom": "a"}]}"#).unwrap();
     let e = SegCapture::load(&shared).unwrap_err().to_string();
-    assert!(e.contains("scene.json") && e.contains("name"), "{e}");
-    std::fs::remove_file(shared.join("scene.json")).unwrap();
+    assert!(e.contains("scene.json"), "{e}");
+    // Without scene.json the objects are named by their mask labels.
+    std::fs::remove_file(&scene_path).unwrap();
+    let unnamed = SegCapture::load(&shared).unwrap().objects;
+    assert_eq!(unnamed, ["object1", "object2", "object3", "object4", "object5"]);
     // An RGBA file where a grayscale mask belongs.
     std::fs::copy(
         shared.join("train/r_0.png"),

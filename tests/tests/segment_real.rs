@@ -26,6 +26,7 @@ fn lego_chair_ranking_is_the_same_at_800_and_400_pixels() {
             a.name, a.max_frequency, a.peak_image, b.max_frequency, b.peak_image
         );
         assert!(a.per_image.iter().all(|(_, d)| d.is_some()));
+        assert!((a.max_frequency / b.max_frequency - 1.0).abs() < 0.05);
     }
     assert_eq!(a800.ranking(), a400.ranking());
 }

@@ -30,8 +30,12 @@ pub struct Args {
     #[arg(long, value_name = "X")]
     pub alpha: Option<f64>,
     /// Share of spectral energy below the reported frequency.
-    #[arg(long, default_value_t = 0.9, value_name = "SHARE")]
+    #[arg(long, default_value_t = 0.75, value_name = "SHARE")]
     pub energy_share: f64,
+    /// Band of frequencies counted, cycles per object diameter (`inf`: up to
+    /// the pixel grid, which makes values depend on the image size).
+    #[arg(long, default_value_t = 32.0, value_name = "CYCLES")]
+    pub band: f64,
     /// Views where an object covers fewer pixels give no frequency.
     #[arg(long, default_value_t = 64, value_name = "PIXELS")]
     pub min_pixels: u32,
@@ -64,6 +68,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.energy_share
         );
     }
+    if args.band.is_nan() || args.band <= 0.0 {
+        anyhow::bail!(
+            "--band {}: must be a positive number of cycles per object diameter (or inf)",
+            args.band
+        );
+    }
     if !(args.margin.is_finite() && args.margin >= 0.0) {
         anyhow::bail!("--margin {}: must be a finite fraction ≥ 0", args.margin);
     }
@@ -76,6 +86,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         frequency: FrequencyOptions {
             energy_share: args.energy_share,
             min_pixels: args.min_pixels,
+            band: args.band.is_finite().then_some(args.band),
             ..FrequencyOptions::default()
         },
         enlarge: EnlargeOptions {
@@ -88,8 +99,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let seg =
         segment(&cap, &opts, &args.out).with_context(|| format!("segmenting {}", cap.source))?;
-    print!("{}", table(&seg));
-    println!(
+    // Written (not `print!`ed) so a closed pipe is an error, not a panic.
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    write!(out, "{}", table(&seg))?;
+    writeln!(
+        out,
         "wrote {} ({} network{}) in {:.2} s (analysis {:.2} s, views {:.2} s)",
         args.out.join(crate::segment::SEGMENTATION_FILE).display(),
         seg.groups.len(),
@@ -97,7 +112,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         seg.timings.total_s,
         seg.timings.analyse_s,
         seg.timings.views_s
-    );
+    )?;
     Ok(())
 }
 

@@ -112,6 +112,7 @@ pub fn compose_side_by_side(sources: &[SegCapture]) -> Result<SegCapture, Segmen
             .collect()
     };
     let cap = SegCapture {
+        scene: None,
         objects,
         camera_angle_x: first.camera_angle_x,
         train: compose_split(|s| &s.train),
@@ -198,5 +199,6 @@ pub fn resize_capture(
         train: resize(&cap.train),
         test: resize(&cap.test),
         source: format!("{} at {width}×{height}", cap.source),
+        scene: cap.scene.clone(),
     })
 }

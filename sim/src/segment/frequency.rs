@@ -1,16 +1,17 @@
 //! The detail frequency of one object in one image.
 //!
 //! **Measure** (see `docs/segmentation.md`): the radius of the disc, centred
-//! on zero frequency, that holds [`FrequencyOptions::energy_share`] (90 %) of
-//! the spectral energy of the object's mean-removed, windowed luminance, in
-//! **cycles per object diameter**.
+//! on zero frequency, that holds [`FrequencyOptions::energy_share`] (75 %) of
+//! the spectral energy of the object's mean-removed, windowed luminance
+//! within a fixed band of [`FrequencyOptions::band`] (32) cycles per object
+//! diameter, in **cycles per object diameter**.
 //!
 //! 1. Luminance `Y` = Rec. 709 luma of the sRGB-coded colour, over the
 //!    pixels whose instance-mask label is the object's (other objects and the
 //!    background are excluded).
 //! 2. Window `w` = the pixel's alpha × a smoothstep taper from 0 at the
 //!    silhouette to 1 at depth `taper·D` inside it (chamfer distance), so
-//!    cutting the object out adds no spurious edge; the band scales with the
+//!    cutting the object out adds no spurious edge; the taper scales with the
 //!    object, so it looks the same at any image size.
 //! 3. Signal `s = w·(Y − Ȳ)`, `Ȳ` the `w`-weighted mean: the object's
 //!    texture and shading, without its average brightness.
@@ -19,20 +20,24 @@
 //!    FFT (`rustfft`). Bin (u, v) lies at radius `√(u² + v²) / L` cycles per
 //!    pixel. The expected power of 8-bit rounding noise is subtracted from
 //!    every bin.
-//! 5. Energies `|S(u, v)|²` (zero frequency excluded) are accumulated by
-//!    radius; the radius where the cumulative share reaches 90 % (linearly
-//!    interpolated in quarter-bin steps) is the frequency in cycles per pixel.
+//! 5. Energies `|S(u, v)|²` (zero frequency excluded) within the band —
+//!    radius ≤ `band / D` cycles per pixel — are accumulated by radius; the
+//!    radius where the cumulative share reaches 75 % (linearly interpolated
+//!    in quarter-bin steps) is the frequency in cycles per pixel.
 //! 6. It is multiplied by the object's **diameter** `D = 2·√2·r_g` pixels
 //!    (`r_g` the alpha-weighted radius of gyration of the object's pixels:
 //!    the diameter of the uniform disc with the same `r_g`).
 //!
-//! Why cycles per object diameter: resizing a capture (400 vs 800 pixels)
-//! or moving the camera scales cycles-per-pixel and the diameter in pixels by
-//! inverse factors, so the product — and hence the ranking of objects and a
-//! user's threshold α — does not depend on the image size or the camera
-//! distance; it changes only where detail falls below the pixel grid.
-//! `r_g` rather than the bounding box because it does not change when the
-//! object turns in the image plane.
+//! Why object units and a fixed band: resizing a capture (400 vs 800
+//! pixels) or moving the camera scales cycles-per-pixel and the diameter in
+//! pixels by inverse factors, so their product does not change — for detail
+//! both sizes resolve. Detail near the pixel grid is what downscaling
+//! removes, and it removes more of it from finely detailed objects, which
+//! reorders objects. Counting only frequencies up to a fixed number of
+//! cycles per diameter — a band every view resolves when the object spans
+//! at least `2·band` pixels — makes the value, the ranking and a user's
+//! threshold α the same at any such size. `r_g` rather than the bounding
+//! box because it does not change when the object turns in the image plane.
 
 use image::{GrayImage, RgbaImage};
 use rustfft::{num_complex::Complex, FftPlanner};
@@ -49,14 +54,20 @@ pub struct FrequencyOptions {
     /// Width of the window's taper inside the silhouette, as a fraction of
     /// the object's diameter.
     pub taper: f64,
+    /// Only frequencies up to this many cycles per object diameter count
+    /// (`None`: up to the pixel grid). A fixed band in object units is what
+    /// makes the measure independent of the image size: a view resolves it
+    /// whenever the object spans at least `2·band` pixels.
+    pub band: Option<f64>,
 }
 
 impl Default for FrequencyOptions {
     fn default() -> Self {
         Self {
-            energy_share: 0.9,
+            energy_share: 0.75,
             min_pixels: 64,
             taper: 0.03,
+            band: Some(32.0),
         }
     }
 }
@@ -72,6 +83,9 @@ pub struct DetailFrequency {
     pub diameter_px: f64,
     /// Pixels under the object's mask.
     pub pixels: u32,
+    /// Whether this view resolves the whole band (`D ≥ 2·band` pixels);
+    /// when not, the pixel grid cut the band short and the value may be low.
+    pub band_resolved: bool,
 }
 
 /// A pixel box `[x0, x1) × [y0, y1)`.
@@ -258,6 +272,11 @@ pub fn detail_frequency(
     let mut hist = vec![0.0f64; (max_r * SUB) as usize + 2];
     let half = l as i64 / 2;
     let mut total = 0.0f64;
+    // The band: up to `band` cycles per diameter, in bins.
+    let r_max = opts
+        .band
+        .map_or(f64::INFINITY, |b| b / diameter_px * l as f64);
+    let band_resolved = opts.band.is_none_or(|b| diameter_px >= 2.0 * b);
     for v in 0..l {
         let fv = if (v as i64) > half {
             v as i64 - l as i64
@@ -273,8 +292,11 @@ pub fn detail_frequency(
             if fu == 0 && fv == 0 {
                 continue;
             }
-            let e = (buf[v * l + u].re as f64 - floor).max(0.0);
             let r = ((fu * fu + fv * fv) as f64).sqrt();
+            if r > r_max {
+                continue;
+            }
+            let e = (buf[v * l + u].re as f64 - floor).max(0.0);
             hist[(r * SUB) as usize] += e;
             total += e;
         }
@@ -286,6 +308,7 @@ pub fn detail_frequency(
             cycles_per_pixel: 0.0,
             diameter_px,
             pixels,
+            band_resolved,
         });
     }
     let target = opts.energy_share.clamp(0.0, 1.0) * total;
@@ -305,6 +328,7 @@ pub fn detail_frequency(
         cycles_per_pixel,
         diameter_px,
         pixels,
+        band_resolved,
     })
 }
 
@@ -418,17 +442,26 @@ mod tests {
     #[test]
     fn a_sinusoid_is_found_at_its_frequency_in_object_units() {
         let opts = FrequencyOptions::default();
-        for k in [4.0f32, 8.0, 16.0, 32.0] {
+        for k in [4.0f32, 8.0, 16.0, 24.0] {
             let (img, mask) = disc(300, 240.0, k, 0.8);
             let f = detail_frequency(&img, &mask, 1, &opts).unwrap();
             // Diameter D of a uniform disc equals its geometric diameter.
             assert!((f.diameter_px - 240.0).abs() < 2.0, "{}", f.diameter_px);
-            // The window widens the line a little; 90 % lies just above k.
+            // The window widens the line a little; 75 % lies close to k.
             assert!(
-                f.cycles_per_diameter > 0.9 * k as f64 && f.cycles_per_diameter < 1.35 * k as f64,
+                f.cycles_per_diameter > 0.85 * k as f64 && f.cycles_per_diameter < 1.2 * k as f64,
                 "k = {k}: {f:?}"
             );
+            assert!(f.band_resolved);
         }
+        // Beyond the band the stripes do not count…
+        let (img, mask) = disc(300, 240.0, 60.0, 0.8);
+        let f = detail_frequency(&img, &mask, 1, &opts).unwrap();
+        assert!(f.cycles_per_diameter <= 32.0, "{f:?}");
+        // …and without a band they do.
+        let full = FrequencyOptions { band: None, ..opts };
+        let f = detail_frequency(&img, &mask, 1, &full).unwrap();
+        assert!(f.cycles_per_diameter > 50.0, "{f:?}");
     }
 
     #[test]
@@ -450,6 +483,7 @@ mod tests {
         let (img, mask) = disc(100, 80.0, 5.0, 0.0);
         let f = detail_frequency(&img, &mask, 1, &opts).unwrap();
         assert_eq!(f.cycles_per_diameter, 0.0, "{f:?}");
+        assert!(f.band_resolved);
         let (img, mask) = disc(100, 6.0, 5.0, 0.8);
         assert!(detail_frequency(&img, &mask, 1, &opts).is_none());
         assert!(detail_frequency(&img, &mask, 2, &opts).is_none());

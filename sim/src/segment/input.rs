@@ -5,8 +5,9 @@
 //! capture was read; [`SegCapture::load`] adapts a capture folder.
 
 use super::frequency::PixelBox;
-use crate::camera::{Camera, Transforms};
-use image::{GrayImage, Luma, RgbaImage};
+use crate::camera::Camera;
+use crate::capture::{mask_from_alpha, Capture, CaptureError, Frame, SceneInfo};
+use image::{GrayImage, RgbaImage};
 use std::path::{Path, PathBuf};
 
 /// Errors of the segmentation stage; each names the file, flag or object.
@@ -31,6 +32,9 @@ pub enum SegmentError {
     /// A transforms file is malformed.
     #[error(transparent)]
     Camera(#[from] crate::camera::CameraError),
+    /// A capture folder could not be read or written.
+    #[error(transparent)]
+    Capture(#[from] CaptureError),
     /// The capture is unusable (sizes differ, no frames, an object never
     /// visible, …); the text says what and where.
     #[error("{0}")]
@@ -103,6 +107,9 @@ pub struct SegCapture {
     pub test: Vec<SegFrame>,
     /// Where it was read from, for reports.
     pub source: String,
+    /// The capture's `scene.json` (object kinds, placement, bounds), if it
+    /// had one; the training folders get the entries of their objects.
+    pub scene: Option<SceneInfo>,
 }
 
 impl SegCapture {
@@ -179,96 +186,63 @@ impl SegCapture {
         self.train.first().map_or((0, 0), |f| f.image.dimensions())
     }
 
-    /// Reads a capture folder in the NeRF-synthetic layout:
-    /// `transforms_{train,test}.json`, `<file_path>.png` per frame, and when
-    /// present the instance masks `<file_path>_mask.png` and `scene.json`
-    /// (object names). Without masks the capture is one object named after
-    /// the folder whose mask is `alpha > 0`.
+    /// Reads a capture folder with [`Capture::load`] (NeRF-synthetic layout,
+    /// instance masks and `scene.json` when present).
     pub fn load(dir: &Path) -> Result<Self, SegmentError> {
-        let folder_name = dir
-            .canonicalize()
-            .ok()
-            .and_then(|p| p.file_name().map(|s| s.to_string_lossy().into_owned()))
-            .unwrap_or_else(|| "object".into());
-        let train_t = Transforms::read(&dir.join("transforms_train.json"))?;
-        let test_path = dir.join("transforms_test.json");
-        let test_t = if test_path.is_file() {
-            Some(Transforms::read(&test_path)?)
-        } else {
-            None
-        };
-        let train = read_frames(dir, &train_t)?;
-        let test = match &test_t {
-            Some(t) => read_frames(dir, t)?,
-            None => Vec::new(),
-        };
-        let objects = match scene_object_names(dir)? {
-            Some(names) => names,
-            None => {
-                // No scene.json: as many objects as the largest mask label.
-                let max = train
-                    .iter()
-                    .chain(&test)
-                    .flat_map(|f| f.mask.as_raw().iter().copied().max())
-                    .max()
-                    .unwrap_or(0);
-                match max {
-                    0 | 1 => vec![folder_name],
-                    n => (1..=n).map(|k| format!("object{k}")).collect(),
-                }
-            }
-        };
-        let cap = SegCapture {
-            objects,
-            camera_angle_x: train_t.camera_angle_x,
-            train,
-            test,
-            source: dir.display().to_string(),
-        };
-        cap.validate()?;
-        Ok(cap)
+        Self::from_capture(Capture::load(dir)?)
     }
-}
 
-/// Object names from `scene.json` (`objects[i].name`), if the file exists.
-fn scene_object_names(dir: &Path) -> Result<Option<Vec<String>>, SegmentError> {
-    let path = dir.join("scene.json");
-    if !path.is_file() {
-        return Ok(None);
-    }
-    let text = std::fs::read_to_string(&path).map_err(|source| SegmentError::Io {
-        path: path.clone(),
-        source,
-    })?;
-    let v: serde_json::Value = serde_json::from_str(&text)
-        .map_err(|e| SegmentError::Invalid(format!("{}: invalid JSON: {e}", path.display())))?;
-    let objects = v
-        .get("objects")
-        .and_then(|o| o.as_array())
-        .ok_or_else(|| SegmentError::Invalid(format!("{}: no `objects` array", path.display())))?;
-    objects
-        .iter()
-        .enumerate()
-        .map(|(i, o)| {
-            o.get("name")
-                .and_then(|n| n.as_str())
-                .map(str::to_string)
-                .ok_or_else(|| {
-                    SegmentError::Invalid(format!(
-                        "{}: objects[{i}] has no string `name`",
-                        path.display()
-                    ))
+    /// Adapts a loaded capture. Objects are named by its `scene.json`.
+    /// Without one: masks with labels up to n > 1 name objects `object1` …
+    /// `objectn`; otherwise it is one object named after its folder, whose
+    /// mask is `alpha > 0` (a real NeRF-synthetic capture).
+    pub fn from_capture(cap: Capture) -> Result<Self, SegmentError> {
+        let max_label = cap
+            .frames()
+            .filter_map(|f| f.mask.as_ref())
+            .filter_map(|m| m.as_raw().iter().copied().max())
+            .max()
+            .unwrap_or(0);
+        let objects = match (&cap.scene, max_label) {
+            (Some(scene), _) => scene.objects.iter().map(|o| o.name.clone()).collect(),
+            // Masks but no scene.json: name the objects by their labels.
+            (None, n) if n > 1 => (1..=n).map(|k| format!("object{k}")).collect(),
+            (None, _) => vec![cap
+                .dir
+                .canonicalize()
+                .ok()
+                .and_then(|p| p.file_name().map(|s| s.to_string_lossy().into_owned()))
+                .unwrap_or_else(|| "object".into())],
+        };
+        let convert = |frames: Vec<Frame>| -> Vec<SegFrame> {
+            frames
+                .into_iter()
+                .map(|f| {
+                    let mask = match f.mask {
+                        Some(m) => m,
+                        None => mask_from_alpha(&f.image),
+                    };
+                    SegFrame {
+                        file_path: f.file_path,
+                        image: f.image,
+                        mask,
+                        camera: f.camera,
+                        object_views: Vec::new(),
+                    }
                 })
-        })
-        .collect::<Result<Vec<_>, _>>()
-        .map(Some)
-}
-
-/// The instance mask of a single-object image: label 1 where alpha > 0.
-pub fn mask_from_alpha(image: &RgbaImage) -> GrayImage {
-    GrayImage::from_fn(image.width(), image.height(), |x, y| {
-        Luma([u8::from(image.get_pixel(x, y)[3] > 0)])
-    })
+                .collect()
+        };
+        let seg = SegCapture {
+            objects,
+            camera_angle_x: cap.camera_angle_x,
+            source: cap.dir.display().to_string(),
+            train: convert(cap.train),
+            test: convert(cap.test),
+            scene: cap.scene,
+        };
+        seg.validate()?;
+        Ok(seg)
+    }
 }
 
 /// Reads one image as RGBA8, naming the file on failure.
@@ -284,43 +258,4 @@ pub fn read_rgba(path: &Path) -> Result<RgbaImage, SegmentError> {
         )));
     }
     Ok(img.to_rgba8())
-}
-
-fn read_frames(dir: &Path, t: &Transforms) -> Result<Vec<SegFrame>, SegmentError> {
-    use rayon::prelude::*;
-    (0..t.frames.len())
-        .into_par_iter()
-        .map(|i| {
-            let entry = &t.frames[i];
-            let path = dir.join(format!("{}.png", entry.file_path));
-            let image = read_rgba(&path)?;
-            let camera = t.camera(i, image.width(), image.height()).ok_or_else(|| {
-                SegmentError::Invalid(format!("{}: frame {i} has no camera", path.display()))
-            })?;
-            let mask_path = dir.join(format!("{}{}", entry.file_path, super::output::MASK_SUFFIX));
-            let mask = if mask_path.is_file() {
-                let m = image::open(&mask_path).map_err(|source| SegmentError::Image {
-                    path: mask_path.clone(),
-                    source,
-                })?;
-                if m.color() != image::ColorType::L8 {
-                    return Err(SegmentError::Invalid(format!(
-                        "{}: an instance mask must be 8-bit grayscale, found {:?}",
-                        mask_path.display(),
-                        m.color()
-                    )));
-                }
-                m.into_luma8()
-            } else {
-                mask_from_alpha(&image)
-            };
-            Ok(SegFrame {
-                file_path: entry.file_path.clone(),
-                mask,
-                image,
-                camera,
-                object_views: Vec::new(),
-            })
-        })
-        .collect()
 }

@@ -5,17 +5,16 @@ use super::analysis::{AlphaSource, Analysis, Decision, Decisions};
 use super::enlarge::{enlarge_within, isolate, EnlargeOptions};
 use super::frequency::FrequencyOptions;
 use super::input::{SegCapture, SegFrame, SegmentError};
-use crate::camera::{rows_from_mat4, Camera, FrameEntry, Transforms};
+use crate::camera::Camera;
+use crate::capture::{CaptureWriter, Split};
 use image::{imageops, GrayImage, RgbaImage};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 /// Version of the `segmentation.json` layout written by this module.
 pub const SEGMENTATION_VERSION: u32 = 1;
-/// Suffix that turns a frame's `file_path` into its instance mask's path
-/// (the capture layout's convention).
-pub const MASK_SUFFIX: &str = "_mask.png";
 /// File name of the segmentation summary inside the output folder.
 pub const SEGMENTATION_FILE: &str = "segmentation.json";
 
@@ -253,6 +252,8 @@ pub struct MeasureInfo {
     pub unit: String,
     /// Share of spectral energy below the frequency.
     pub energy_share: f64,
+    /// Band counted, cycles per object diameter (null: up to the pixels).
+    pub band: Option<f64>,
     /// Views with fewer object pixels give no value.
     pub min_pixels: u32,
 }
@@ -289,6 +290,8 @@ pub struct ImageRecord {
     pub cycles_per_pixel: Option<f64>,
     /// Object diameter in pixels (2·√2·radius of gyration).
     pub diameter_px: Option<f64>,
+    /// Whether the view resolves the whole band (diameter ≥ 2·band pixels).
+    pub band_resolved: Option<bool>,
 }
 
 /// One network's training set.
@@ -444,6 +447,7 @@ fn summary(
                         frequency: d.map(|d| d.cycles_per_diameter),
                         cycles_per_pixel: d.map(|d| d.cycles_per_pixel),
                         diameter_px: d.map(|d| d.diameter_px),
+                        band_resolved: d.map(|d| d.band_resolved),
                     })
                     .collect(),
             }
@@ -455,9 +459,11 @@ fn summary(
         image_width: w,
         image_height: h,
         measure: MeasureInfo {
-            name: "spectral energy radius of the mean-removed, windowed masked luminance".into(),
+            name: "spectral energy radius of the mean-removed, windowed masked luminance, within a band"
+                .into(),
             unit: "cycles per object diameter (2·√2·radius of gyration of its mask)".into(),
             energy_share: opts.frequency.energy_share,
+            band: opts.frequency.band,
             min_pixels: opts.frequency.min_pixels,
         },
         alpha: decisions.alpha,
@@ -469,14 +475,8 @@ fn summary(
     }
 }
 
-/// What a written view contributes to its transforms file.
-struct WrittenView {
-    entry: FrameEntry,
-    zoom: f64,
-    size: (u32, u32),
-}
-
-/// Writes one group's folder; returns its record.
+/// Writes one group's folder (through [`CaptureWriter`], so it is a
+/// capture like any other); returns its record.
 fn write_group(
     cap: &SegCapture,
     group: &Group,
@@ -492,94 +492,90 @@ fn write_group(
     if tmp_dir.exists() {
         std::fs::remove_dir_all(&tmp_dir).map_err(io(&tmp_dir))?;
     }
-    std::fs::create_dir_all(&tmp_dir).map_err(io(&tmp_dir))?;
-    let mut size: Option<(u32, u32)> = None;
+    match write_group_into(cap, group, opts, &tmp_dir) {
+        Ok(record) => {
+            replace_dir(&tmp_dir, &final_dir)?;
+            Ok(record)
+        }
+        Err(e) => {
+            // Best effort: the error matters more than the leftover.
+            let _ = std::fs::remove_dir_all(&tmp_dir);
+            Err(e)
+        }
+    }
+}
+
+fn write_group_into(
+    cap: &SegCapture,
+    group: &Group,
+    opts: &EnlargeOptions,
+    tmp_dir: &Path,
+) -> Result<GroupRecord, SegmentError> {
+    let writer = CaptureWriter::create(tmp_dir, cap.camera_angle_x)?;
+    let size: Mutex<Option<(u32, u32, String)>> = Mutex::new(None);
     let mut counts = [0usize; 2];
     let mut zoom_sum = 0.0;
-    for (split, frames) in [("train", &cap.train), ("test", &cap.test)] {
-        if frames.is_empty() {
-            continue;
-        }
-        let written: Vec<Option<WrittenView>> = frames
+    for (split, frames) in [(Split::Train, &cap.train), (Split::Test, &cap.test)] {
+        let zooms: Mutex<f64> = Mutex::new(0.0);
+        let n = frames
             .par_iter()
-            .map(|f| -> Result<_, SegmentError> {
+            .enumerate()
+            .map(|(index, f)| -> Result<usize, SegmentError> {
                 let Some(v) = group_view(f, group, opts)? else {
-                    return Ok(None);
+                    return Ok(0);
                 };
-                let path = tmp_dir.join(format!("{}.png", v.file_path));
-                if let Some(parent) = path.parent() {
-                    std::fs::create_dir_all(parent).map_err(io(parent))?;
+                {
+                    let mut s = size.lock().unwrap_or_else(|e| e.into_inner());
+                    let (w, h) = v.image.dimensions();
+                    match &*s {
+                        Some((sw, sh, first)) if (*sw, *sh) != (w, h) => {
+                            return Err(SegmentError::Invalid(format!(
+                                "{}: group {:?}: view {} is {w}×{h}, view {first} is {sw}×{sh}",
+                                cap.source, group.folder, v.file_path
+                            )));
+                        }
+                        Some(_) => {}
+                        None => *s = Some((w, h, v.file_path.clone())),
+                    }
                 }
-                v.image.save(&path).map_err(|source| SegmentError::Image {
-                    path: path.clone(),
-                    source,
-                })?;
-                // The capture layout's instance mask: `<file_path>_mask.png`.
-                let mask_path = tmp_dir.join(format!("{}{MASK_SUFFIX}", v.file_path));
-                v.mask
-                    .save(&mask_path)
-                    .map_err(|source| SegmentError::Image {
-                        path: mask_path,
-                        source,
-                    })?;
-                let k = v.camera.intrinsics;
-                Ok(Some(WrittenView {
-                    size: v.image.dimensions(),
-                    zoom: 0.5 * (v.zoom.0 + v.zoom.1),
-                    entry: FrameEntry {
-                        file_path: v.file_path,
-                        transform_matrix: rows_from_mat4(&v.camera.c2w),
-                        fl_x: Some(k.fx as f64),
-                        fl_y: Some(k.fy as f64),
-                        cx: Some(k.cx as f64),
-                        cy: Some(k.cy as f64),
-                        extra: Default::default(),
-                    },
-                }))
+                let stem = v.file_path.rsplit('/').next().unwrap_or(&v.file_path);
+                writer.write_frame(split, index, stem, &v.camera, &v.image, Some(&v.mask))?;
+                *zooms.lock().unwrap_or_else(|e| e.into_inner()) += 0.5 * (v.zoom.0 + v.zoom.1);
+                Ok(1)
             })
-            .collect::<Result<_, _>>()?;
-        let frames: Vec<WrittenView> = written.into_iter().flatten().collect();
-        for v in &frames {
-            match size {
-                None => size = Some(v.size),
-                Some(s) if s != v.size => {
-                    return Err(SegmentError::Invalid(format!(
-                        "{}: group {:?}: view {} is {:?}, others are {s:?}",
-                        cap.source, group.folder, v.entry.file_path, v.size
-                    )))
-                }
-                Some(_) => {}
-            }
+            .try_reduce(|| 0, |a, b| Ok(a + b))?;
+        if n == 0 && split == Split::Train {
+            return Err(SegmentError::Invalid(format!(
+                "{}: group {:?} is visible in no training view",
+                cap.source, group.folder
+            )));
         }
-        if frames.is_empty() {
-            if split == "train" {
-                return Err(SegmentError::Invalid(format!(
-                    "{}: group {:?} is visible in no training view",
-                    cap.source, group.folder
-                )));
-            }
-            continue;
+        counts[usize::from(split == Split::Test)] = n;
+        if split == Split::Train {
+            zoom_sum = zooms.into_inner().unwrap_or_else(|e| e.into_inner());
         }
-        let idx = usize::from(split == "test");
-        counts[idx] = frames.len();
-        if split == "train" {
-            zoom_sum = frames.iter().map(|v| v.zoom).sum::<f64>();
-        }
-        let (w, h) = size.unwrap_or_default();
-        let t = Transforms {
-            camera_angle_x: cap.camera_angle_x,
-            fl_x: None,
-            fl_y: None,
-            cx: None,
-            cy: None,
-            w: Some(w),
-            h: Some(h),
-            frames: frames.into_iter().map(|v| v.entry).collect(),
-        };
-        t.write(&tmp_dir.join(format!("transforms_{split}.json")))?;
     }
-    replace_dir(&tmp_dir, &final_dir)?;
-    let (image_width, image_height) = size.unwrap_or_default();
+    // The group's own scene.json: its objects' entries, renumbered 1..n.
+    let scene = cap.scene.as_ref().map(|s| {
+        let mut g = s.clone();
+        g.objects = group
+            .objects
+            .iter()
+            .enumerate()
+            .filter_map(|(i, &o)| {
+                s.objects.get(o).cloned().map(|mut info| {
+                    info.mask_value = (i + 1) as u8;
+                    info
+                })
+            })
+            .collect();
+        g
+    });
+    writer.finish(scene.as_ref())?;
+    let (image_width, image_height, _) = size
+        .into_inner()
+        .unwrap_or_else(|e| e.into_inner())
+        .unwrap_or_default();
     Ok(GroupRecord {
         image_width,
         image_height,

@@ -6,6 +6,7 @@
 
 use super::input::{SegCapture, SegFrame};
 use crate::camera::{Camera, Intrinsics};
+use crate::capture::{ObjectInfo, Placement, SceneInfo};
 use glam::Vec3;
 use image::{GrayImage, Luma, Rgba, RgbaImage};
 use rayon::prelude::*;
@@ -138,6 +139,38 @@ pub fn render_view(spheres: &[TexturedSphere], camera: &Camera) -> (RgbaImage, G
     (image, mask)
 }
 
+/// The `scene.json` entries of the spheres (kind `textured-sphere`, placed
+/// at their centres with scale = radius, bounds = the sphere's box).
+pub fn scene_info(spheres: &[TexturedSphere]) -> SceneInfo {
+    let mut scene = SceneInfo::new(
+        spheres
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                let c = s.centre.to_array().map(f64::from);
+                let r = s.radius as f64;
+                ObjectInfo {
+                    name: s.name.clone(),
+                    kind: "textured-sphere".into(),
+                    mask_value: (i + 1) as u8,
+                    placement: Placement {
+                        translation: c,
+                        rotation_z_deg: 0.0,
+                        scale: r,
+                    },
+                    bounds_min: c.map(|v| v - r),
+                    bounds_max: c.map(|v| v + r),
+                    complexity_quads: None,
+                    texture_frequency: None,
+                    extra: Default::default(),
+                }
+            })
+            .collect(),
+    );
+    scene.layout = Some("ring".into());
+    scene
+}
+
 /// A whole capture of `spheres`: `train` views at 30° and `test` views at
 /// 45° elevation, `size × size` pixels.
 pub fn sphere_capture(
@@ -167,5 +200,6 @@ pub fn sphere_capture(
         train: make("train", orbit_cameras(train, 30.0, size, size)),
         test: make("test", orbit_cameras(test, 45.0, size, size)),
         source: format!("spheres({})", spheres.len()),
+        scene: Some(scene_info(spheres)),
     }
 }
