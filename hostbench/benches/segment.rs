@@ -2,20 +2,20 @@
 //! beside the NeRFlex paper's 3.8 s for twenty images (object recognition,
 //! segmentation and interpolation).
 //!
-//! Input: the five textured spheres of `segment::testscene` (20 training
-//! views, 800×800, instance masks given — our captures carry their masks, so
-//! there is no recognition network to run). With `../shared/data` present,
-//! the real lego + chair composite (20 views of 1600×800, i.e. 40 source
-//! images of 800×800) is timed too.
+//! Input: the built-in five-object `scene4`, rendered once (not timed) with
+//! 20 training views of 800×800 — our captures carry their instance masks,
+//! so there is no recognition network to run. With `../shared/data`
+//! present, the real lego + chair composite (20 views of 1600×800, i.e. 40
+//! source images of 800×800) is timed too.
 //!
 //! The summary times whole runs (median of three, wall clock and this
 //! process' CPU seconds, since the machine may be shared); criterion then
 //! times the stages.
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use nerflex_sim::procedural::{arrange, make_capture, CaptureSpec, Layout, Preset, RenderOptions};
 use nerflex_sim::segment::compose::compose_dirs;
 use nerflex_sim::segment::output::{for_each_view, plan_groups};
-use nerflex_sim::segment::testscene::{ring_of_five, sphere_capture};
 use nerflex_sim::segment::{
     analyse, decide, segment, EnlargeOptions, FrequencyOptions, SegCapture, SegmentOptions,
 };
@@ -94,9 +94,28 @@ fn summary(name: &str, cap: &SegCapture) {
     println!("  NeRFlex paper (20 images)   {PAPER_SECONDS:>6.2} s");
 }
 
+/// `nerflex scene make --preset scene4 --views 20 --test-views 0 --size 800`.
+fn scene4(dir: &std::path::Path) -> SegCapture {
+    let spec = CaptureSpec {
+        objects: arrange(&Preset::Scene4.kinds(), Layout::Ring, 0, 1.0),
+        layout: "ring".into(),
+        preset: Some(Preset::Scene4),
+        seed: 0,
+        train_views: 20,
+        test_views: 0,
+        size: 800,
+        render: RenderOptions::default(),
+    };
+    println!("rendering scene4, 20 views of 800×800 (setup, not timed)…");
+    let report = make_capture(&spec, dir, &|| {}).expect("render scene4");
+    SegCapture::load(&report.dir).expect("load scene4")
+}
+
 fn bench(c: &mut Criterion) {
-    let spheres = sphere_capture(&ring_of_five(), 20, 0, 800);
-    summary("5 spheres", &spheres);
+    let tmp = std::env::temp_dir().join(format!("nerflex-segment-bench-s4-{}", std::process::id()));
+    let scene = scene4(&tmp);
+    std::fs::remove_dir_all(&tmp).ok();
+    summary("scene4", &scene);
     if let Some(data) = nerflex_sim::data::require_data("segment benchmark on lego + chair") {
         let ns = data.join("nerf_synthetic");
         match compose_dirs(&[&ns.join("lego"), &ns.join("chair")], None) {
@@ -112,13 +131,13 @@ fn bench(c: &mut Criterion) {
     g.sample_size(10);
     g.measurement_time(Duration::from_secs(10));
     let opts = FrequencyOptions::default();
-    g.bench_function("frequency_analysis_5_objects", |b| {
-        b.iter(|| analyse(black_box(&spheres), &opts))
+    g.bench_function("frequency_analysis_scene4", |b| {
+        b.iter(|| analyse(black_box(&scene), &opts))
     });
     g.sampling_mode(criterion::SamplingMode::Flat);
     g.measurement_time(Duration::from_secs(20));
-    g.bench_function("analysis_and_views_in_memory_5_objects", |b| {
-        b.iter(|| analyse_and_views(black_box(&spheres)))
+    g.bench_function("analysis_and_views_in_memory_scene4", |b| {
+        b.iter(|| analyse_and_views(black_box(&scene)))
     });
     g.finish();
 }
