@@ -25,7 +25,10 @@ fn scene4_ranking_is_the_same_at_800_and_400_pixels_and_outputs_load() {
     assert_eq!(cap.objects.len(), 5);
     let small = resize_capture(&cap, 400, 400).unwrap();
     let opts = FrequencyOptions::default();
-    let (a800, a400) = (analyse(&cap, &opts).unwrap(), analyse(&small, &opts).unwrap());
+    let (a800, a400) = (
+        analyse(&cap, &opts).unwrap(),
+        analyse(&small, &opts).unwrap(),
+    );
     for (a, b) in a800.objects.iter().zip(&a400.objects) {
         eprintln!(
             "{:<11} {:>7.2} at {} (800 px) {:>7.2} at {} (400 px)",

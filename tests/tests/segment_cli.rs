@@ -137,7 +137,10 @@ fn a_colour_mask_or_a_label_without_an_object_is_refused_naming_the_file() {
     // Without scene.json the objects are named by their mask labels.
     std::fs::remove_file(&scene_path).unwrap();
     let unnamed = SegCapture::load(&shared).unwrap().objects;
-    assert_eq!(unnamed, ["object1", "object2", "object3", "object4", "object5"]);
+    assert_eq!(
+        unnamed,
+        ["object1", "object2", "object3", "object4", "object5"]
+    );
     // An RGBA file where a grayscale mask belongs.
     std::fs::copy(
         shared.join("train/r_0.png"),
