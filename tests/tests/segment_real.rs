@@ -102,3 +102,24 @@ fn lego_chair_views_are_consistent_with_the_source_cameras() {
         }
     }
 }
+
+#[test]
+fn a_composite_cannot_share_one_network_across_cameras() {
+    let Some(data) = require_data("lego + chair shared group") else {
+        return;
+    };
+    let ns = data.join("nerf_synthetic");
+    let mut cap = compose_dirs(&[&ns.join("lego"), &ns.join("chair")], Some(64)).unwrap();
+    cap.train.truncate(2);
+    let out = tempfile::tempdir().unwrap();
+    let opts = SegmentOptions {
+        alpha: Some(1e9),
+        ..Default::default()
+    };
+    let e = segment(&cap, &opts, out.path()).unwrap_err().to_string();
+    assert!(
+        e.contains("different cameras") && e.contains("--alpha"),
+        "{e}"
+    );
+    assert_eq!(std::fs::read_dir(out.path()).unwrap().count(), 0);
+}

@@ -387,6 +387,23 @@ pub fn segment(
         let path = path.to_path_buf();
         move |source| SegmentError::Io { path, source }
     };
+    // Refuse an impossible shared group before writing anything.
+    for g in groups.iter().filter(|g| g.objects.len() > 1) {
+        for f in cap.train.iter().chain(&cap.test) {
+            let first = (f.camera_of(g.objects[0]), f.region_of(g.objects[0]));
+            if g.objects
+                .iter()
+                .any(|&o| (f.camera_of(o), f.region_of(o)) != first)
+            {
+                return Err(SegmentError::Invalid(format!(
+                    "{}: the shared group ({}) mixes objects seen through different cameras \
+                     (a 2-D composite of separate captures); lower --alpha so each gets a dedicated network",
+                    f.file_path,
+                    g.objects.iter().map(|&o| cap.objects[o].as_str()).collect::<Vec<_>>().join(", ")
+                )));
+            }
+        }
+    }
     std::fs::create_dir_all(out).map_err(io(out))?;
     let t1 = std::time::Instant::now();
     let mut records = Vec::new();
