@@ -1,1 +1,334 @@
-//! (module under construction)
+//! The baker: MobileNeRF-format assets at any grid g and patch p from posed
+//! captures, without training.
+//!
+//! A fast, honest stand-in for MobileNeRF's hours of GPU training that
+//! produces the same kind of asset from the same kind of input:
+//!
+//! 1. [`carve`]: a g×g×g voxel grid over the object's cube is carved with
+//!    every training silhouette (visual hull, conservative footprint test);
+//! 2. [`quads`]: one axis-aligned quad on every face between an occupied and
+//!    an empty cell (MobileNeRF's grid-aligned quads);
+//! 3. [`atlas`]: each quad owns a p×p texel cell in RGBA8 pages of at most
+//!    4096²;
+//! 4. [`texels`]: each texel's colour is the average of the training views
+//!    that see its surface point (depth test against a depth map of the
+//!    carved quads), weighted toward frontal views;
+//! 5. [`mlp_fit`]: an analytic 11→16→16→3 MLP plus a per-channel byte code
+//!    such that the renderer's shader turns each texel's features back into
+//!    its colour;
+//! 6. [`sweep`]: many (g, p) bakes in parallel, measured, cached, as a CSV.
+//!
+//! Design notes and measured figures: `docs/baking.md`.
+
+pub mod atlas;
+pub mod carve;
+pub mod export;
+pub mod mlp_fit;
+pub mod quads;
+pub mod sweep;
+pub mod texels;
+
+use glam::Vec3;
+use image::{GrayImage, RgbaImage};
+use std::time::Instant;
+
+use crate::camera::Camera;
+
+/// Version of the baking algorithm; part of every sweep cache key, so a
+/// change to the baker that changes its output must bump it.
+pub const BAKER_VERSION: u32 = 1;
+
+/// Errors of the baker (bad parameters or unusable views).
+#[derive(Debug, thiserror::Error)]
+pub enum BakeError {
+    /// A parameter is out of its range.
+    #[error("{0}")]
+    BadParam(String),
+    /// The views cannot be used (none, sizes disagree with the cameras, …).
+    #[error("{0}")]
+    BadViews(String),
+    /// Carving removed every voxel: silhouettes and cameras disagree.
+    #[error("carving left no occupied voxel (do the masks and cameras belong together, is the object label right?)")]
+    Empty,
+}
+
+/// An axis-aligned box in world units (z up).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Aabb {
+    /// Lower corner.
+    pub min: Vec3,
+    /// Upper corner.
+    pub max: Vec3,
+}
+
+impl Aabb {
+    /// The smallest cube with the same centre that contains the box.
+    pub fn cube(&self) -> Aabb {
+        let c = 0.5 * (self.min + self.max);
+        let half = 0.5 * (self.max - self.min).max_element();
+        Aabb {
+            min: c - Vec3::splat(half),
+            max: c + Vec3::splat(half),
+        }
+    }
+
+    /// The box grown by `margin` on every side.
+    pub fn grown(&self, margin: f32) -> Aabb {
+        Aabb {
+            min: self.min - Vec3::splat(margin),
+            max: self.max + Vec3::splat(margin),
+        }
+    }
+
+    fn is_valid(&self) -> bool {
+        self.min.is_finite() && self.max.is_finite() && self.min.cmplt(self.max).all()
+    }
+}
+
+/// Which pixels of a view belong to the object being baked.
+#[derive(Debug, Clone, Copy)]
+pub enum Silhouette<'a> {
+    /// The image's alpha is the object's coverage (single-object captures
+    /// such as the real NeRF-synthetic ones).
+    Alpha,
+    /// An instance mask: the object owns the pixels whose value equals
+    /// `label` (object index + 1); its coverage there is the image alpha.
+    Instance {
+        /// The instance mask, same size as the image.
+        mask: &'a GrayImage,
+        /// The object's label in the mask.
+        label: u8,
+    },
+}
+
+/// One posed training view of the object.
+#[derive(Debug, Clone, Copy)]
+pub struct BakeView<'a> {
+    /// The camera (its intrinsics must match the image size).
+    pub camera: Camera,
+    /// RGBA image, alpha = coverage, straight (not premultiplied) colour.
+    pub image: &'a RgbaImage,
+    /// Which pixels are the object.
+    pub silhouette: Silhouette<'a>,
+}
+
+impl BakeView<'_> {
+    /// The object's coverage at pixel (x, y) in [0, 255].
+    #[inline]
+    pub fn coverage(&self, x: u32, y: u32) -> u8 {
+        let a = self.image.get_pixel(x, y).0[3];
+        match self.silhouette {
+            Silhouette::Alpha => a,
+            Silhouette::Instance { mask, label } => {
+                if mask.get_pixel(x, y).0[0] == label {
+                    a
+                } else {
+                    0
+                }
+            }
+        }
+    }
+}
+
+/// Bake settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BakeParams {
+    /// Voxels per edge of the object's cube (g).
+    pub grid: u32,
+    /// Texels per edge of a quad's patch (p); the quad's corners sit on the
+    /// centres of the patch's corner texels, as in MobileNeRF (p = 17).
+    pub patch: u32,
+    /// Where to look for the object (world units). `None`: the NeRF-synthetic
+    /// extent [-1.5, 1.5]³. The baked cube is the bounding cube of a coarse
+    /// carve inside this box, see [`carve::object_cube`].
+    pub search_box: Option<Aabb>,
+    /// Exponent of the frontal weighting cos(θ)^k of a view's contribution
+    /// to a texel (θ between the face normal and the direction to the camera).
+    pub frontal_power: f32,
+    /// Which voxels survive carving.
+    pub voxel_test: carve::VoxelTest,
+}
+
+impl BakeParams {
+    /// Defaults for a given (g, p).
+    pub fn new(grid: u32, patch: u32) -> Self {
+        Self {
+            grid,
+            patch,
+            search_box: None,
+            frontal_power: 1.0,
+            voxel_test: carve::VoxelTest::Centre,
+        }
+    }
+
+    fn validate(&self) -> Result<(), BakeError> {
+        if !(1..=1024).contains(&self.grid) {
+            return Err(BakeError::BadParam(format!(
+                "--grid {} is outside 1..=1024",
+                self.grid
+            )));
+        }
+        if !(2..=atlas::MAX_PAGE_TEXELS).contains(&self.patch) {
+            return Err(BakeError::BadParam(format!(
+                "--patch {} is outside 2..={}",
+                self.patch,
+                atlas::MAX_PAGE_TEXELS
+            )));
+        }
+        if !(self.frontal_power.is_finite() && self.frontal_power >= 0.0) {
+            return Err(BakeError::BadParam(format!(
+                "frontal power {} must be a finite number ≥ 0",
+                self.frontal_power
+            )));
+        }
+        if let Some(b) = self.search_box {
+            if !b.is_valid() {
+                return Err(BakeError::BadParam(format!(
+                    "search box {b:?} is empty or not finite"
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Wall-clock time of each stage, seconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StageTimes {
+    /// Bounds and carving.
+    pub carve_s: f64,
+    /// Boundary quads, texel occupancy and atlas layout.
+    pub quads_s: f64,
+    /// Image pyramids and depth maps of every view.
+    pub views_s: f64,
+    /// Texel colours and atlas filling.
+    pub texels_s: f64,
+}
+
+/// Counts and timings of one bake.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct BakeStats {
+    /// Occupied voxels after carving.
+    pub occupied_voxels: u64,
+    /// Texels that some view saw (depth test passed).
+    pub seen_texels: u64,
+    /// Occupied texels no view saw; they take the colour of their quad's
+    /// seen texels (or, if none, of the facing views without depth test).
+    pub unseen_texels: u64,
+    /// Empty texels (outside the visual hull), stored as feat0.R = 0.
+    pub empty_texels: u64,
+    /// Stage timings.
+    pub times: StageTimes,
+}
+
+/// One baked object, ready to write in the MobileNeRF export layout.
+#[derive(Debug, Clone)]
+pub struct BakedObject {
+    /// The bake settings.
+    pub params: BakeParams,
+    /// The cube the grid spans (world units).
+    pub cube: Aabb,
+    /// Quads, in atlas order: quad `i` owns cell `i` of [`Self::atlas`].
+    pub quads: Vec<quads::Quad>,
+    /// The two feature atlases, page by page.
+    pub atlas: atlas::Atlas,
+    /// The MLP that decodes the features (`W[in][out]` layout).
+    pub mlp: mlp_fit::MlpWeights,
+    /// Counts and timings.
+    pub stats: BakeStats,
+}
+
+impl BakedObject {
+    /// GPU-resident bytes: every page of both atlases decoded as RGBA8.
+    pub fn gpu_bytes(&self) -> u64 {
+        self.atlas.gpu_bytes()
+    }
+}
+
+/// Bakes one object from its training views.
+pub fn bake(views: &[BakeView<'_>], params: &BakeParams) -> Result<BakedObject, BakeError> {
+    params.validate()?;
+    validate_views(views)?;
+    let t0 = Instant::now();
+    let search = params.search_box.unwrap_or(carve::NERF_SYNTHETIC_BOX);
+    let silhouettes = carve::Silhouettes::new(views);
+    let cube = carve::object_cube(&silhouettes, &search).ok_or(BakeError::Empty)?;
+    let grid = carve::carve(&silhouettes, &cube, params.grid, params.voxel_test);
+    let occupied = grid.occupied_count();
+    if occupied == 0 {
+        return Err(BakeError::Empty);
+    }
+    let t1 = Instant::now();
+    let boundary = quads::boundary_quads(&grid);
+    let p2 = (params.patch * params.patch) as usize;
+    let all_occ = carve::texel_occupancy(&silhouettes, &grid, &boundary, params.patch);
+    drop(silhouettes);
+    // Quads whose every texel is empty are dropped (nothing to draw).
+    let mut quads = Vec::with_capacity(boundary.len());
+    let mut occupancy = Vec::with_capacity(all_occ.len());
+    for (q, occ) in boundary.iter().zip(all_occ.chunks(p2)) {
+        if occ.iter().any(|&o| o) {
+            quads.push(*q);
+            occupancy.extend_from_slice(occ);
+        }
+    }
+    let layout = atlas::AtlasLayout::new(quads.len(), params.patch);
+    let t2 = Instant::now();
+    let prepared = texels::PreparedViews::new(views, &quads, &occupancy, params.patch);
+    let t3 = Instant::now();
+    let (mlp, code) = mlp_fit::design();
+    let mut settings = texels::TexelSettings::new(params.patch, grid.voxel);
+    settings.frontal_power = params.frontal_power;
+    let (atlas, counts) =
+        texels::fill_atlas(&prepared, &quads, &occupancy, &layout, &settings, &code);
+    let t4 = Instant::now();
+    Ok(BakedObject {
+        params: params.clone(),
+        cube,
+        quads,
+        atlas,
+        mlp,
+        stats: BakeStats {
+            occupied_voxels: occupied,
+            seen_texels: counts.seen,
+            unseen_texels: counts.unseen,
+            empty_texels: counts.empty,
+            times: StageTimes {
+                carve_s: (t1 - t0).as_secs_f64(),
+                quads_s: (t2 - t1).as_secs_f64(),
+                views_s: (t3 - t2).as_secs_f64(),
+                texels_s: (t4 - t3).as_secs_f64(),
+            },
+        },
+    })
+}
+
+fn validate_views(views: &[BakeView<'_>]) -> Result<(), BakeError> {
+    if views.is_empty() {
+        return Err(BakeError::BadViews("no training views".into()));
+    }
+    for (i, v) in views.iter().enumerate() {
+        let k = &v.camera.intrinsics;
+        if (k.width, k.height) != v.image.dimensions() {
+            return Err(BakeError::BadViews(format!(
+                "view {i}: image is {}×{} but its camera is {}×{}",
+                v.image.width(),
+                v.image.height(),
+                k.width,
+                k.height
+            )));
+        }
+        if let Silhouette::Instance { mask, .. } = v.silhouette {
+            if mask.dimensions() != v.image.dimensions() {
+                return Err(BakeError::BadViews(format!(
+                    "view {i}: mask is {}×{} but the image is {}×{}",
+                    mask.width(),
+                    mask.height(),
+                    v.image.width(),
+                    v.image.height()
+                )));
+            }
+        }
+    }
+    Ok(())
+}

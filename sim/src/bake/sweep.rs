@@ -1,0 +1,1 @@
+//! Many (g, p) bakes measured into a samples CSV (under construction).
