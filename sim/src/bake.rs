@@ -145,8 +145,24 @@ pub struct BakeParams {
     /// Exponent of the frontal weighting cos(θ)^k of a view's contribution
     /// to a texel (θ between the face normal and the direction to the camera).
     pub frontal_power: f32,
-    /// Which voxels survive carving.
+    /// Which voxels survive carving ([`Geometry::Boundary`] only).
     pub voxel_test: carve::VoxelTest,
+    /// How quads are placed.
+    pub geometry: Geometry,
+}
+
+/// How the baker places quads on the grid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Geometry {
+    /// One quad per face between a carved (occupied) voxel and an empty one;
+    /// texels are emptied only where a thin voxel sticks out of the hull.
+    Boundary,
+    /// Every face of the voxels the hull's surface crosses ("shell" voxels),
+    /// with texel alpha = inside the hull, and the layers no training view
+    /// sees dropped: shape finer than a voxel comes from the texels, as in
+    /// MobileNeRF, so the patch p sharpens silhouettes too.
+    #[default]
+    Shell,
 }
 
 impl BakeParams {
@@ -158,6 +174,7 @@ impl BakeParams {
             search_box: None,
             frontal_power: 1.0,
             voxel_test: carve::VoxelTest::Centre,
+            geometry: Geometry::Shell,
         }
     }
 
@@ -253,35 +270,60 @@ pub fn bake(views: &[BakeView<'_>], params: &BakeParams) -> Result<BakedObject, 
     let search = params.search_box.unwrap_or(carve::NERF_SYNTHETIC_BOX);
     let silhouettes = carve::Silhouettes::new(views);
     let cube = carve::object_cube(&silhouettes, &search).ok_or(BakeError::Empty)?;
-    let grid = carve::carve(&silhouettes, &cube, params.grid, params.voxel_test);
-    let occupied = grid.occupied_count();
+    let p2 = (params.patch * params.patch) as usize;
+    let (boundary, all_occ, voxel, occupied) = match params.geometry {
+        Geometry::Boundary => {
+            let grid = carve::carve(&silhouettes, &cube, params.grid, params.voxel_test);
+            let quads = quads::boundary_quads(&grid);
+            let occ = carve::texel_occupancy(&silhouettes, &grid, &quads, params.patch);
+            (quads, occ, grid.voxel, grid.occupied_count())
+        }
+        Geometry::Shell => {
+            let grid = carve::shell(&silhouettes, &cube, params.grid);
+            let quads = quads::shell_quads(&grid);
+            let occ = carve::texel_occupancy_hull(&silhouettes, &quads, params.patch);
+            let n = grid.count(carve::VoxelClass::Shell) + grid.count(carve::VoxelClass::Full);
+            (quads, occ, grid.voxel, n)
+        }
+    };
+    drop(silhouettes);
     if occupied == 0 {
         return Err(BakeError::Empty);
     }
     let t1 = Instant::now();
-    let boundary = quads::boundary_quads(&grid);
-    let p2 = (params.patch * params.patch) as usize;
-    let all_occ = carve::texel_occupancy(&silhouettes, &grid, &boundary, params.patch);
-    drop(silhouettes);
     // Quads whose every texel is empty are dropped (nothing to draw).
-    let mut quads = Vec::with_capacity(boundary.len());
-    let mut occupancy = Vec::with_capacity(all_occ.len());
-    for (q, occ) in boundary.iter().zip(all_occ.chunks(p2)) {
-        if occ.iter().any(|&o| o) {
-            quads.push(*q);
-            occupancy.extend_from_slice(occ);
-        }
-    }
-    let layout = atlas::AtlasLayout::new(quads.len(), params.patch);
+    let (quads, occupancy) = keep_quads(&boundary, &all_occ, p2, |_, occ| occ.iter().any(|&o| o));
+    drop(all_occ);
     let t2 = Instant::now();
     let prepared = texels::PreparedViews::new(views, &quads, &occupancy, params.patch);
     let t3 = Instant::now();
-    let (mlp, code) = mlp_fit::design();
-    let mut settings = texels::TexelSettings::new(params.patch, grid.voxel);
+    let mut settings = texels::TexelSettings::new(params.patch, voxel);
     settings.frontal_power = params.frontal_power;
-    let (atlas, counts) =
-        texels::fill_atlas(&prepared, &quads, &occupancy, &layout, &settings, &code);
+    settings.two_sided = params.geometry == Geometry::Shell;
+    let colours = texels::colour_quads(&prepared, &quads, &occupancy, &settings);
+    drop(prepared);
+    // Shell layers no training view sees are hidden behind others: drop
+    // them. (Boundary quads are the only surface there is: they keep a
+    // colour from the facing views.)
+    let keep: Vec<bool> = match params.geometry {
+        Geometry::Shell => colours.seen.iter().map(|&n| n > 0).collect(),
+        Geometry::Boundary => vec![true; quads.len()],
+    };
+    let (quads, occupancy) = keep_quads(&quads, &occupancy, p2, |i, _| keep[i]);
+    let rgb: Vec<[u8; 3]> = colours
+        .rgb
+        .chunks(p2)
+        .zip(&keep)
+        .filter(|(_, &k)| k)
+        .flat_map(|(c, _)| c.iter().copied())
+        .collect();
+    let seen: u64 = colours.seen.iter().map(|&n| u64::from(n)).sum();
+    let occupied_texels = occupancy.iter().filter(|&&o| o).count() as u64;
+    let layout = atlas::AtlasLayout::new(quads.len(), params.patch);
+    let (mlp, code) = mlp_fit::design();
+    let atlas = texels::write_atlas(&rgb, &occupancy, &layout, &code);
     let t4 = Instant::now();
+    let counts = (seen, occupied_texels.saturating_sub(seen), occupancy.len() as u64 - occupied_texels);
     Ok(BakedObject {
         params: params.clone(),
         cube,
@@ -290,9 +332,9 @@ pub fn bake(views: &[BakeView<'_>], params: &BakeParams) -> Result<BakedObject, 
         mlp,
         stats: BakeStats {
             occupied_voxels: occupied,
-            seen_texels: counts.seen,
-            unseen_texels: counts.unseen,
-            empty_texels: counts.empty,
+            seen_texels: counts.0,
+            unseen_texels: counts.1,
+            empty_texels: counts.2,
             times: StageTimes {
                 carve_s: (t1 - t0).as_secs_f64(),
                 quads_s: (t2 - t1).as_secs_f64(),
@@ -301,6 +343,25 @@ pub fn bake(views: &[BakeView<'_>], params: &BakeParams) -> Result<BakedObject, 
             },
         },
     })
+}
+
+/// The quads for which `keep(index, occupancy)` holds, with their
+/// occupancy.
+fn keep_quads(
+    quads: &[quads::Quad],
+    occupancy: &[bool],
+    p2: usize,
+    keep: impl Fn(usize, &[bool]) -> bool,
+) -> (Vec<quads::Quad>, Vec<bool>) {
+    let mut q_out = Vec::with_capacity(quads.len());
+    let mut o_out = Vec::with_capacity(occupancy.len());
+    for (i, (q, occ)) in quads.iter().zip(occupancy.chunks(p2)).enumerate() {
+        if keep(i, occ) {
+            q_out.push(*q);
+            o_out.extend_from_slice(occ);
+        }
+    }
+    (q_out, o_out)
 }
 
 fn validate_views(views: &[BakeView<'_>]) -> Result<(), BakeError> {

@@ -109,20 +109,21 @@ fn scratch() {
     let (tcams, timgs) = load("test", 5);
     let views: Vec<BakeView> = cams.iter().zip(&imgs).map(|(c, i)| BakeView { camera: *c, image: i, silhouette: Silhouette::Alpha }).collect();
     let configs: Vec<(u32, u32)> = std::env::var("GP").unwrap_or("16:5,64:9,128:17".into()).split(',').map(|s| { let v: Vec<u32> = s.split(':').map(|x| x.parse().unwrap()).collect(); (v[0], v[1]) }).collect();
+    let lp = if std::env::var("LP").is_ok() { Some(nerflex_sim::metrics::Lpips::load(nerflex_sim::metrics::Lpips::default_path().unwrap()).unwrap()) } else { None };
     for (g, p) in configs {
-        let mut bp = BakeParams::new(g, p); if let Ok(v) = std::env::var("FP") { bp.frontal_power = v.parse().unwrap(); } let obj = bake(&views, &bp).unwrap();
-        let mut ps = vec![]; let mut ss = vec![];
+        let mut bp = BakeParams::new(g, p); if std::env::var("BOUNDARY").is_ok() { bp.geometry = Geometry::Boundary; } if let Ok(v) = std::env::var("FP") { bp.frontal_power = v.parse().unwrap(); } let obj = bake(&views, &bp).unwrap();
+        let mut ps = vec![]; let mut ss = vec![]; let mut ls = vec![];
         for (i, (c, gt)) in tcams.iter().zip(&timgs).enumerate() {
             let r = preview(&obj, c);
             let gtw = over_white(gt);
-            ps.push(psnr(&r, &gtw)); ss.push(ssim(&r, &gtw));
+            let sc = nerflex_sim::metrics::Metrics::compare(&r, gt, lp.as_ref()).unwrap(); ps.push(sc.psnr); ss.push(sc.ssim); ls.push(sc.lpips.unwrap_or(0.0));
             if i == 0 { r.save(format!("/tmp/bk/prev_{g}_{p}.png")).unwrap(); gtw.save("/tmp/bk/gt0.png").unwrap();
                 let d = image::RgbaImage::from_fn(r.width(), r.height(), |x, y| { let a = r.get_pixel(x, y).0; let b = gtw.get_pixel(x, y).0;
                     let rm = a[0] < 250 || a[1] < 250 || a[2] < 250; let gm = gt.get_pixel(x, y).0[3] > 127;
                     image::Rgba([if rm && !gm {255} else {0}, if gm && !rm {255} else {0}, (0..3).map(|c| (a[c] as i32 - b[c] as i32).unsigned_abs()).max().unwrap().min(255) as u8, 255]) });
                 d.save(format!("/tmp/bk/diff_{g}_{p}.png")).unwrap(); }
         }
-        println!("g {g} p {p} quads {} psnr {:.2} ssim {:.4} {:?}", obj.quads.len(), ps.iter().sum::<f64>() / 5.0, ss.iter().sum::<f64>() / 5.0, ps.iter().map(|v| format!("{v:.2}")).collect::<Vec<_>>());
+        println!("g {g} p {p} quads {} psnr {:.2} ssim {:.4} lpips {:.4} {:?}", obj.quads.len(), ps.iter().sum::<f64>() / 5.0, ss.iter().sum::<f64>() / 5.0, ls.iter().sum::<f64>() / 5.0, ps.iter().map(|v| format!("{v:.2}")).collect::<Vec<_>>());
     }
     let _ = Vec3::ZERO;
 }

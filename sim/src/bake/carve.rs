@@ -121,20 +121,140 @@ impl Silhouettes {
     /// frame shows background at its pixel.
     #[inline]
     pub fn inside(&self, x: Vec3) -> bool {
-        self.projs.iter().zip(&self.tables).all(|(p, t)| {
+        // Points that fewer than half of the views have in frame are not
+        // evidence of matter (as for voxels).
+        let min_seen = self.len().div_ceil(2).max(1);
+        let mut seen = 0;
+        for (p, t) in self.projs.iter().zip(&self.tables) {
             let c = p.w2c.transform_point3(x);
             let depth = -c.z;
             if depth <= 1e-4 {
-                return true;
+                continue;
             }
             let px = p.cx + p.fx * c.x / depth;
             let py = p.cy - p.fy * c.y / depth;
             if !(px >= 0.0 && py >= 0.0 && px < p.width && py < p.height) {
-                return true;
+                continue;
             }
-            t.fg[py as usize * t.width as usize + px as usize]
-        })
+            if !t.fg[py as usize * t.width as usize + px as usize] {
+                return false;
+            }
+            seen += 1;
+        }
+        seen >= min_seen
     }
+}
+
+/// Where a voxel is relative to the visual hull, judged at its 8 corners
+/// and its centre.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum VoxelClass {
+    /// No sample inside.
+    Empty,
+    /// Some samples inside, some outside: the hull's surface crosses it.
+    Shell,
+    /// Every sample inside.
+    Full,
+}
+
+/// A g³ grid classified against the hull (see [`shell`]).
+#[derive(Debug, Clone)]
+pub struct ShellGrid {
+    /// Voxels per edge.
+    pub g: u32,
+    /// World position of the grid's lower corner.
+    pub origin: Vec3,
+    /// Edge length of a voxel, world units.
+    pub voxel: f32,
+    /// Class of each voxel, x fastest, then y, then z.
+    class: Vec<VoxelClass>,
+}
+
+impl ShellGrid {
+    /// The class of voxel (i, j, k); outside the grid is empty.
+    #[inline]
+    pub fn class(&self, i: i64, j: i64, k: i64) -> VoxelClass {
+        let g = self.g as i64;
+        if i < 0 || j < 0 || k < 0 || i >= g || j >= g || k >= g {
+            return VoxelClass::Empty;
+        }
+        self.class[((k * g + j) * g + i) as usize]
+    }
+
+    /// The lower corner of voxel (i, j, k).
+    #[inline]
+    pub fn corner(&self, i: u32, j: u32, k: u32) -> Vec3 {
+        self.origin + self.voxel * Vec3::new(i as f32, j as f32, k as f32)
+    }
+
+    /// Number of voxels of a class.
+    pub fn count(&self, c: VoxelClass) -> u64 {
+        self.class.iter().filter(|&&v| v == c).count() as u64
+    }
+}
+
+/// Classifies a `g`³ grid spanning `cube`. The hull is sampled on a lattice
+/// of half-voxel spacing ((2g+1)³ point tests, each shared by up to 8
+/// voxels), so every voxel is judged at 27 points: its corners, edge
+/// midpoints, face centres and centre. A voxel is [`VoxelClass::Shell`]
+/// when they disagree, so parts down to about half a voxel thick are found.
+pub fn shell(sil: &Silhouettes, cube: &Aabb, g: u32) -> ShellGrid {
+    let g = g.clamp(1, MAX_GRID);
+    let voxel = (cube.max - cube.min).max_element() / g as f32;
+    let origin = cube.min;
+    let n = 2 * g as usize + 1;
+    let half = 0.5 * voxel;
+    let mut lattice = vec![false; n * n * n];
+    lattice.par_chunks_mut(n * n).enumerate().for_each(|(k, slice)| {
+        for j in 0..n {
+            for i in 0..n {
+                slice[j * n + i] =
+                    sil.inside(origin + half * Vec3::new(i as f32, j as f32, k as f32));
+            }
+        }
+    });
+    let gu = g as usize;
+    let mut class = vec![VoxelClass::Empty; gu * gu * gu];
+    class.par_chunks_mut(gu * gu).enumerate().for_each(|(k, slice)| {
+        for j in 0..gu {
+            for i in 0..gu {
+                let mut inside = 0;
+                for c in 0..27 {
+                    let (a, b, d) = (2 * i + c % 3, 2 * j + (c / 3) % 3, 2 * k + c / 9);
+                    inside += usize::from(lattice[(d * n + b) * n + a]);
+                }
+                slice[j * gu + i] = match inside {
+                    0 => VoxelClass::Empty,
+                    27 => VoxelClass::Full,
+                    _ => VoxelClass::Shell,
+                };
+            }
+        }
+    });
+    ShellGrid {
+        g,
+        origin,
+        voxel,
+        class,
+    }
+}
+
+/// Texel occupancy of shell quads: a texel holds matter iff its point is
+/// inside the visual hull.
+pub fn texel_occupancy_hull(sil: &Silhouettes, quads: &[Quad], p: u32) -> Vec<bool> {
+    let p = p.max(2) as usize;
+    let mut occ = vec![true; quads.len() * p * p];
+    let step = 1.0 / (p - 1) as f32;
+    occ.par_chunks_mut(p * p)
+        .zip(quads.par_iter())
+        .for_each(|(cell, q)| {
+            for ty in 0..p {
+                for tx in 0..p {
+                    cell[ty * p + tx] = sil.inside(q.point(tx as f32 * step, ty as f32 * step));
+                }
+            }
+        });
+    occ
 }
 
 /// The carved occupancy of a g³ grid over a cube.

@@ -7,7 +7,7 @@
 
 use glam::Vec3;
 
-use super::carve::Grid;
+use super::carve::{Grid, ShellGrid, VoxelClass};
 
 /// One quad: a square face of a voxel.
 ///
@@ -101,4 +101,46 @@ fn face(lo: Vec3, h: f32, axis: usize, sign: i64, voxel: [u32; 3]) -> Quad {
         normal,
         voxel,
     }
+}
+
+/// All faces of the shell voxels of `grid` (each face once), for the
+/// [`super::Geometry::Shell`] geometry: texel alpha then carves the hull's
+/// shape out of these layers of quads. A face between a shell voxel and a
+/// full one faces the shell voxel; a face between two shell voxels faces
+/// +axis (the texel pass weighs views on both sides of a quad alike).
+pub fn shell_quads(grid: &ShellGrid) -> Vec<Quad> {
+    let g = grid.g;
+    let h = grid.voxel;
+    let mut out = Vec::new();
+    for k in 0..g {
+        for j in 0..g {
+            for i in 0..g {
+                let (ii, jj, kk) = (i as i64, j as i64, k as i64);
+                if grid.class(ii, jj, kk) != VoxelClass::Shell {
+                    continue;
+                }
+                let lo = grid.corner(i, j, k);
+                for &(axis, sign) in &FACES {
+                    let mut n = [ii, jj, kk];
+                    n[axis] += sign;
+                    let other = grid.class(n[0], n[1], n[2]);
+                    // A face between two shell voxels is emitted once, by
+                    // the lower one; faces toward full voxels are emitted
+                    // facing away from them.
+                    if other == VoxelClass::Shell && sign < 0 {
+                        continue;
+                    }
+                    if other == VoxelClass::Full {
+                        // The same face seen as the full voxel's, facing out of it.
+                        let mut d = Vec3::ZERO;
+                        d[axis] = sign as f32 * h;
+                        out.push(face(lo + d, h, axis, -sign, [i, j, k]));
+                    } else {
+                        out.push(face(lo, h, axis, sign, [i, j, k]));
+                    }
+                }
+            }
+        }
+    }
+    out
 }

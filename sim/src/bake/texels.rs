@@ -33,8 +33,11 @@ pub struct TexelSettings {
     pub voxel: f32,
     /// Exponent k of the frontal weight cos(θ)^k.
     pub frontal_power: f32,
-    /// Views at a grazing angle (cos θ below this) do not contribute.
+    /// Views at a grazing angle (|cos θ| below this) do not contribute.
     pub min_cos: f32,
+    /// Whether views behind a quad (cos θ < 0) count too (shell quads have
+    /// no inside).
+    pub two_sided: bool,
 }
 
 impl TexelSettings {
@@ -45,6 +48,7 @@ impl TexelSettings {
             voxel,
             frontal_power: 1.0,
             min_cos: 0.05,
+            two_sided: false,
         }
     }
 }
@@ -321,86 +325,97 @@ fn raster_triangle(
     }
 }
 
-/// How many texels the views saw.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct TexelCounts {
-    /// Texels with at least one view passing the depth test.
-    pub seen: u64,
-    /// Occupied texels filled from neighbours or without the depth test.
-    pub unseen: u64,
-    /// Empty texels (outside the visual hull, discarded by the shader).
-    pub empty: u64,
+/// The colours of every quad's patch.
+pub struct PatchColours {
+    /// Texels per patch edge.
+    pub patch: u32,
+    /// 8-bit sRGB per texel, p² per quad, quad after quad (empty texels: 0).
+    pub rgb: Vec<[u8; 3]>,
+    /// Per quad: how many of its occupied texels some view saw.
+    pub seen: Vec<u32>,
 }
 
-/// Colours every quad's patch and writes both feature atlases.
-pub fn fill_atlas(
+/// Colours every quad's patch from the views (in parallel over quads).
+pub fn colour_quads(
     views: &PreparedViews,
     quads: &[Quad],
     occupancy: &[bool],
-    layout: &AtlasLayout,
     settings: &TexelSettings,
-    code: &ColourCode,
-) -> (Atlas, TexelCounts) {
+) -> PatchColours {
     let p = settings.patch as usize;
+    let mut rgb = vec![[0u8; 3]; quads.len() * p * p];
+    let mut seen = vec![0u32; quads.len()];
+    rgb.par_chunks_mut(p * p)
+        .zip(seen.par_iter_mut())
+        .enumerate()
+        .for_each_init(
+            || vec![[0f32; 3]; p * p],
+            |colours, (qi, (out, seen))| {
+                let occ = &occupancy[qi * p * p..(qi + 1) * p * p];
+                *seen = patch_colours(views, &quads[qi], occ, settings, colours) as u32;
+                for ((o, c), &full) in out.iter_mut().zip(colours.iter()).zip(occ) {
+                    *o = if full {
+                        c.map(|v| (v * 255.0).round().clamp(0.0, 255.0) as u8)
+                    } else {
+                        [0; 3]
+                    };
+                }
+            },
+        );
+    PatchColours {
+        patch: settings.patch,
+        rgb,
+        seen,
+    }
+}
+
+/// Writes both feature atlases: occupied texels get `code`'s features of
+/// their colour, empty texels feat0 = 0 (discarded by the shader).
+pub fn write_atlas(
+    colours: &[[u8; 3]],
+    occupancy: &[bool],
+    layout: &AtlasLayout,
+    code: &ColourCode,
+) -> Atlas {
+    let p = layout.patch as usize;
     let mut pages = Vec::with_capacity(layout.pages.len());
-    let mut counts = TexelCounts::default();
     for (pi, pl) in layout.pages.iter().enumerate() {
         let (pw, ph) = layout.page_size(pi);
         let mut feat0 = RgbaImage::new(pw, ph);
         let row_bytes = p * pw as usize * 4;
-        let row_counts: Vec<TexelCounts> = feat0
+        feat0
             .as_mut()
             .par_chunks_mut(row_bytes)
             .enumerate()
-            .map(|(row, buf)| {
-                let mut n = TexelCounts::default();
-                let mut colours = vec![[0f32; 3]; p * p];
+            .for_each(|(row, buf)| {
                 for col in 0..pl.cols as usize {
                     let local = row * pl.cols as usize + col;
                     if local >= pl.quads {
                         break;
                     }
-                    let qi = pl.first_quad + local;
-                    let q = &quads[qi];
-                    let occ = &occupancy[qi * p * p..(qi + 1) * p * p];
-                    let seen = patch_colours(views, q, occ, settings, &mut colours);
-                    let occupied = occ.iter().filter(|&&o| o).count();
-                    n.seen += seen as u64;
-                    n.unseen += (occupied - seen) as u64;
-                    n.empty += (p * p - occupied) as u64;
+                    let base = (pl.first_quad + local) * p * p;
                     for ty in 0..p {
                         for tx in 0..p {
-                            let f0 = if occ[ty * p + tx] {
-                                let c = colours[ty * p + tx];
-                                let level = c.map(|v| (v * 255.0).round().clamp(0.0, 255.0) as u8);
-                                code.features(level).0
+                            let t = base + ty * p + tx;
+                            let f0 = if occupancy[t] {
+                                code.features(colours[t]).0
                             } else {
-                                [0; 4] // feat0.R == 0: empty texel, discarded
+                                [0; 4] // feat0.R == 0: empty texel
                             };
                             let o = (ty * pw as usize + col * p + tx) * 4;
                             buf[o..o + 4].copy_from_slice(&f0);
                         }
                     }
                 }
-                n
-            })
-            .collect();
-        for n in row_counts {
-            counts.seen += n.seen;
-            counts.unseen += n.unseen;
-            counts.empty += n.empty;
-        }
+            });
         // Spare channels stay 0: the MLP gives them zero weight.
         let feat1 = RgbaImage::new(pw, ph);
         pages.push(AtlasPage { feat0, feat1 });
     }
-    (
-        Atlas {
-            layout: layout.clone(),
-            pages,
-        },
-        counts,
-    )
+    Atlas {
+        layout: layout.clone(),
+        pages,
+    }
 }
 
 /// Per-view constants of one quad.
@@ -433,7 +448,10 @@ fn patch_colours(
         .filter_map(|v| {
             let to_cam = v.cam.position - centre;
             let dist = to_cam.length();
-            let cos = q.normal.dot(to_cam) / dist;
+            let mut cos = q.normal.dot(to_cam) / dist;
+            if s.two_sided {
+                cos = cos.abs();
+            }
             if cos < s.min_cos {
                 return None;
             }

@@ -1,4 +1,4 @@
-//! `nerflex bake`: bake MobileNeRF-format assets from a posed capture, one
+//! `nerflex bake`: bake MobileNeRF-format assets from posed captures, one
 //! (g, p) or a sweep, optionally measured against the held-out views.
 
 use std::path::{Path, PathBuf};
@@ -6,15 +6,18 @@ use std::time::Instant;
 
 use anyhow::{bail, Context as _};
 
-use crate::bake::{self, export, BakeParams, BakeView, Silhouette};
-use crate::camera::{Camera, Transforms};
+use crate::bake::sweep::{self, Cache, ObjectViews, SweepOptions};
+use crate::bake::{self, carve::VoxelTest, export, BakeParams};
+use crate::camera::Transforms;
+use crate::metrics::Lpips;
 
 /// Flags of `nerflex bake`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Capture folder in the NeRF-synthetic layout (`transforms_train.json`, …).
-    #[arg(long)]
-    pub capture: PathBuf,
+    /// Capture folder in the NeRF-synthetic layout (`transforms_train.json`,
+    /// `transforms_test.json`, images); with `--sweep`, repeat for more objects.
+    #[arg(long, required = true)]
+    pub capture: Vec<PathBuf>,
     /// Grid g (voxels per edge); with `--sweep`, a comma-separated list.
     #[arg(long, value_delimiter = ',', required = true)]
     pub grid: Vec<u32>,
@@ -24,90 +27,248 @@ pub struct Args {
     /// Output folder of the asset (MobileNeRF export layout).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Render the held-out test views and report SSIM, PSNR, LPIPS.
+    #[arg(long)]
+    pub measure: bool,
+    /// With `--measure`: also write the renders (`test_{i}.png`) here.
+    #[arg(long)]
+    pub renders: Option<PathBuf>,
+    /// Bake and measure every (capture, g, p) into a samples CSV.
+    #[arg(long)]
+    pub sweep: bool,
+    /// The samples CSV of `--sweep`.
+    #[arg(long, default_value = "results/bake/samples.csv")]
+    pub csv: PathBuf,
+    /// Cache folder of measured samples (default: `cache/` beside the CSV).
+    #[arg(long)]
+    pub cache: Option<PathBuf>,
+    /// Bake everything again, ignoring the cache.
+    #[arg(long)]
+    pub no_cache: bool,
+    /// Bakes running at once during a sweep (each bake is parallel inside).
+    #[arg(long, default_value_t = 2)]
+    pub jobs: usize,
     /// Use only the first N training views.
     #[arg(long)]
     pub max_views: Option<usize>,
-    /// Exponent k of the frontal weighting cos(θ)^k.
-    #[arg(long, default_value_t = 4.0)]
+    /// Use only the first N test views for `--measure` / `--sweep`.
+    #[arg(long)]
+    pub max_test_views: Option<usize>,
+    /// Exponent k of the frontal weighting cos(θ)^k of a view's colour.
+    #[arg(long, default_value_t = 1.0)]
     pub frontal_power: f32,
+    /// Which voxels survive carving: centre, any-point or footprint.
+    #[arg(long, default_value = "centre", value_parser = parse_voxel_test)]
+    pub voxel_test: VoxelTest,
+    /// LPIPS weights (default: `lpips/` in the shared data folder; LPIPS is
+    /// left out if absent).
+    #[arg(long)]
+    pub lpips_weights: Option<PathBuf>,
 }
 
-/// A loaded capture: training views (camera, image).
-struct Loaded {
-    cameras: Vec<Camera>,
-    images: Vec<image::RgbaImage>,
-}
-
-/// Reads the training split of a NeRF-synthetic folder.
-fn load_train(dir: &Path, max_views: Option<usize>) -> anyhow::Result<Loaded> {
-    let tpath = dir.join("transforms_train.json");
-    let t = Transforms::read(&tpath)?;
-    let n = max_views.unwrap_or(usize::MAX).min(t.frames.len());
-    let mut cameras = Vec::new();
-    let mut images = Vec::new();
-    for i in 0..n {
-        let f = &t.frames[i];
-        let p = dir.join(format!("{}.png", f.file_path));
-        let img = image::open(&p)
-            .with_context(|| format!("{}: cannot read image", p.display()))?
-            .to_rgba8();
-        let cam = t
-            .camera(i, img.width(), img.height())
-            .with_context(|| format!("{}: frame {i} missing", tpath.display()))?;
-        cameras.push(cam);
-        images.push(img);
+fn parse_voxel_test(s: &str) -> Result<VoxelTest, String> {
+    match s {
+        "centre" | "center" => Ok(VoxelTest::Centre),
+        "any-point" => Ok(VoxelTest::AnyPoint),
+        "footprint" => Ok(VoxelTest::Footprint),
+        _ => Err(format!(
+            "`{s}` is not a voxel test (centre, any-point, footprint)"
+        )),
     }
-    Ok(Loaded { cameras, images })
+}
+
+/// Reads one object of a NeRF-synthetic folder: training views, test views,
+/// and a content hash of every file read.
+pub fn load_object(
+    dir: &Path,
+    max_views: Option<usize>,
+    max_test_views: Option<usize>,
+) -> anyhow::Result<ObjectViews> {
+    let name = dir
+        .file_name()
+        .and_then(|n| n.to_str())
+        .context("capture folder has no name")?
+        .to_string();
+    let mut files = Vec::new();
+    let mut read_split = |split: &str, limit: Option<usize>| -> anyhow::Result<Vec<_>> {
+        let tpath = dir.join(format!("transforms_{split}.json"));
+        let t = Transforms::read(&tpath)?;
+        files.push(tpath.clone());
+        let n = limit.unwrap_or(usize::MAX).min(t.frames.len());
+        let mut out = Vec::with_capacity(n);
+        for i in 0..n {
+            let f = &t.frames[i];
+            let p = dir.join(format!("{}.png", f.file_path));
+            let img = image::open(&p)
+                .with_context(|| format!("{}: cannot read image", p.display()))?;
+            if !img.color().has_alpha() {
+                bail!("{}: no alpha channel (the silhouette)", p.display());
+            }
+            let img = img.to_rgba8();
+            let cam = t
+                .camera(i, img.width(), img.height())
+                .with_context(|| format!("{}: frame {i} missing", tpath.display()))?;
+            files.push(p);
+            out.push((cam, img));
+        }
+        Ok(out)
+    };
+    let train = read_split("train", max_views)?;
+    let test = read_split("test", max_test_views)?;
+    let content_hash = sweep::hash_files(&files)?;
+    Ok(ObjectViews {
+        name,
+        content_hash,
+        train: train.into_iter().map(|(c, i)| (c, i, None)).collect(),
+        test,
+    })
+}
+
+/// The renderer used to measure bakes.
+fn renderer() -> Box<sweep::RenderFn<'static>> {
+    Box::new(|_obj, _cam| {
+        anyhow::bail!("measuring needs the renderer of `nerflex render`, which is not there yet")
+    })
+}
+
+fn lpips(args: &Args) -> anyhow::Result<Option<Lpips>> {
+    let path = match &args.lpips_weights {
+        Some(p) => Some(p.clone()),
+        None => Lpips::default_path(),
+    };
+    match path {
+        Some(p) => Ok(Some(Lpips::load(&p)?)),
+        None => {
+            eprintln!("LPIPS weights not found: LPIPS is left out (pass --lpips-weights FILE)");
+            Ok(None)
+        }
+    }
+}
+
+fn base_params(args: &Args) -> BakeParams {
+    let mut p = BakeParams::new(0, 0);
+    p.frontal_power = args.frontal_power;
+    p.voxel_test = args.voxel_test;
+    p
 }
 
 /// Runs `nerflex bake`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (&g, &p) = match (args.grid.as_slice(), args.patch.as_slice()) {
-        ([g], [p]) => (g, p),
-        _ => bail!("--grid and --patch take one value each without --sweep"),
+    if args.sweep {
+        return run_sweep(&args);
+    }
+    let (capture, g, p) = match (args.capture.as_slice(), args.grid.as_slice(), args.patch.as_slice()) {
+        ([c], [g], [p]) => (c, *g, *p),
+        _ => bail!("without --sweep, --capture, --grid and --patch take one value each"),
     };
+    if args.out.is_none() && !args.measure {
+        bail!("nothing to do: give --out DIR to write the asset and/or --measure");
+    }
     let t0 = Instant::now();
-    let cap = load_train(&args.capture, args.max_views)?;
-    let views: Vec<BakeView<'_>> = cap
-        .cameras
-        .iter()
-        .zip(&cap.images)
-        .map(|(c, i)| BakeView {
-            camera: *c,
-            image: i,
-            silhouette: Silhouette::Alpha,
-        })
-        .collect();
+    let obj = load_object(capture, args.max_views, args.max_test_views)?;
     let t_load = t0.elapsed().as_secs_f64();
-    let mut params = BakeParams::new(g, p);
-    params.frontal_power = args.frontal_power;
+    let mut params = base_params(&args);
+    params.grid = g;
+    params.patch = p;
     let t1 = Instant::now();
-    let obj = bake::bake(&views, &params)?;
+    let views = obj.bake_views();
+    let baked = bake::bake(&views, &params)?;
     let t_bake = t1.elapsed().as_secs_f64();
     let t2 = Instant::now();
-    let files = export::encode(&obj)?;
-    let t_encode = t2.elapsed().as_secs_f64();
+    let files = export::encode(&baked)?;
     if let Some(out) = &args.out {
         export::write(&files, out)?;
     }
-    let s = &obj.stats;
+    let t_write = t2.elapsed().as_secs_f64();
+    let s = &baked.stats;
     println!(
-        "baked g={g} p={p} from {} views: {} quads, {} pages, {} occupied voxels, {} seen / {} unseen texels",
+        "{}: g={g} p={p} from {} views: {} quads, {} atlas pages, {} occupied voxels",
+        obj.name,
         views.len(),
-        obj.quads.len(),
-        obj.atlas.pages.len(),
+        baked.quads.len(),
+        baked.atlas.pages.len(),
         s.occupied_voxels,
-        s.seen_texels,
-        s.unseen_texels
     );
     println!(
-        "file bytes {} , GPU bytes {}",
+        "texels: {} seen, {} unseen (filled), {} empty",
+        s.seen_texels, s.unseen_texels, s.empty_texels
+    );
+    println!(
+        "size: {} file bytes, {} GPU bytes",
         export::file_bytes(&files),
-        obj.gpu_bytes()
+        baked.gpu_bytes()
     );
     println!(
-        "time: load {t_load:.2} s, carve {:.2} s, quads {:.2} s, views {:.2} s, texels {:.2} s, encode {t_encode:.2} s",
+        "time: bake {t_bake:.2} s (carve {:.2}, quads {:.2}, views {:.2}, texels {:.2}), encode+write {t_write:.2} s, load {t_load:.2} s",
         s.times.carve_s, s.times.quads_s, s.times.views_s, s.times.texels_s
+    );
+    if let Some(out) = &args.out {
+        println!("wrote {}", out.display());
+    }
+    if args.measure {
+        let net = lpips(&args)?;
+        let render = renderer();
+        let (q, renders) = sweep::measure(
+            &baked,
+            &obj.test,
+            &*render,
+            net.as_ref(),
+            args.renders.is_some(),
+        )?;
+        if let Some(dir) = &args.renders {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("{}: cannot create", dir.display()))?;
+            for (i, img) in renders.iter().enumerate() {
+                let path = dir.join(format!("test_{i}.png"));
+                img.save(&path)
+                    .with_context(|| format!("{}: cannot write", path.display()))?;
+            }
+        }
+        println!(
+            "quality over {} test views: SSIM {:.4}, PSNR {:.2} dB{}",
+            obj.test.len(),
+            q.ssim,
+            q.psnr,
+            q.lpips.map_or(String::new(), |l| format!(", LPIPS {l:.4}"))
+        );
+    }
+    Ok(())
+}
+
+fn run_sweep(args: &Args) -> anyhow::Result<()> {
+    let objects = args
+        .capture
+        .iter()
+        .map(|c| load_object(c, args.max_views, args.max_test_views))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let net = lpips(args)?;
+    let cache_dir = args.cache.clone().unwrap_or_else(|| {
+        args.csv
+            .parent()
+            .unwrap_or_else(|| Path::new("."))
+            .join("cache")
+    });
+    let opts = SweepOptions {
+        grids: args.grid.clone(),
+        patches: args.patch.clone(),
+        base: base_params(args),
+        jobs: args.jobs,
+        cache: (!args.no_cache).then(|| Cache::new(&cache_dir)),
+        lpips: net.as_ref(),
+        progress: true,
+    };
+    let t0 = Instant::now();
+    let render = renderer();
+    let report = sweep::run(&objects, &opts, &*render)?;
+    sweep::write_csv(&args.csv, &report.samples)?;
+    println!(
+        "{} samples ({} baked, {} reused from {}) in {:.1} s → {}",
+        report.samples.len(),
+        report.baked,
+        report.reused,
+        cache_dir.display(),
+        t0.elapsed().as_secs_f64(),
+        args.csv.display()
     );
     Ok(())
 }
