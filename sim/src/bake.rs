@@ -212,14 +212,23 @@ impl BakeParams {
 /// Wall-clock time of each stage, seconds.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StageTimes {
-    /// Bounds and carving.
+    /// Silhouette tables, the object's cube and the voxel grid.
     pub carve_s: f64,
-    /// Boundary quads, texel occupancy and atlas layout.
+    /// Quads and their texel occupancy.
     pub quads_s: f64,
     /// Image pyramids and depth maps of every view.
     pub views_s: f64,
-    /// Texel colours and atlas filling.
-    pub texels_s: f64,
+    /// Texel colours.
+    pub colour_s: f64,
+    /// Atlas layout and filling.
+    pub atlas_s: f64,
+}
+
+impl StageTimes {
+    /// The sum of the stages.
+    pub fn total_s(&self) -> f64 {
+        self.carve_s + self.quads_s + self.views_s + self.colour_s + self.atlas_s
+    }
 }
 
 /// Counts and timings of one bake.
@@ -271,15 +280,18 @@ pub fn bake(views: &[BakeView<'_>], params: &BakeParams) -> Result<BakedObject, 
     let silhouettes = carve::Silhouettes::new(views);
     let cube = carve::object_cube(&silhouettes, &search).ok_or(BakeError::Empty)?;
     let p2 = (params.patch * params.patch) as usize;
+    let t1;
     let (boundary, all_occ, voxel, occupied) = match params.geometry {
         Geometry::Boundary => {
             let grid = carve::carve(&silhouettes, &cube, params.grid, params.voxel_test);
+            t1 = Instant::now();
             let quads = quads::boundary_quads(&grid);
             let occ = carve::texel_occupancy(&silhouettes, &grid, &quads, params.patch);
             (quads, occ, grid.voxel, grid.occupied_count())
         }
         Geometry::Shell => {
             let grid = carve::shell(&silhouettes, &cube, params.grid);
+            t1 = Instant::now();
             let quads = quads::shell_quads(&grid);
             let occ = carve::texel_occupancy_hull(&silhouettes, &quads, params.patch);
             let n = grid.count(carve::VoxelClass::Shell) + grid.count(carve::VoxelClass::Full);
@@ -290,7 +302,6 @@ pub fn bake(views: &[BakeView<'_>], params: &BakeParams) -> Result<BakedObject, 
     if occupied == 0 {
         return Err(BakeError::Empty);
     }
-    let t1 = Instant::now();
     // Quads whose every texel is empty are dropped (nothing to draw).
     let (quads, occupancy) = keep_quads(&boundary, &all_occ, p2, |_, occ| occ.iter().any(|&o| o));
     drop(all_occ);
@@ -302,6 +313,7 @@ pub fn bake(views: &[BakeView<'_>], params: &BakeParams) -> Result<BakedObject, 
     settings.two_sided = params.geometry == Geometry::Shell;
     let colours = texels::colour_quads(&prepared, &quads, &occupancy, &settings);
     drop(prepared);
+    let t4 = Instant::now();
     // Shell layers no training view sees are hidden behind others: drop
     // them. (Boundary quads are the only surface there is: they keep a
     // colour from the facing views.)
@@ -322,7 +334,7 @@ pub fn bake(views: &[BakeView<'_>], params: &BakeParams) -> Result<BakedObject, 
     let layout = atlas::AtlasLayout::new(quads.len(), params.patch);
     let (mlp, code) = mlp_fit::design();
     let atlas = texels::write_atlas(&rgb, &occupancy, &layout, &code);
-    let t4 = Instant::now();
+    let t5 = Instant::now();
     let counts = (seen, occupied_texels.saturating_sub(seen), occupancy.len() as u64 - occupied_texels);
     Ok(BakedObject {
         params: params.clone(),
@@ -339,7 +351,8 @@ pub fn bake(views: &[BakeView<'_>], params: &BakeParams) -> Result<BakedObject, 
                 carve_s: (t1 - t0).as_secs_f64(),
                 quads_s: (t2 - t1).as_secs_f64(),
                 views_s: (t3 - t2).as_secs_f64(),
-                texels_s: (t4 - t3).as_secs_f64(),
+                colour_s: (t4 - t3).as_secs_f64(),
+                atlas_s: (t5 - t4).as_secs_f64(),
             },
         },
     })

@@ -145,8 +145,34 @@ impl Silhouettes {
     }
 }
 
-/// Where a voxel is relative to the visual hull, judged at its 8 corners
-/// and its centre.
+impl Silhouettes {
+    /// [`Silhouettes::inside`] for a point already known to be on the
+    /// silhouette in `known_seen` views: only the views in `views` are tested.
+    #[inline]
+    fn inside_views(&self, x: Vec3, views: &[usize], known_seen: usize, min_seen: usize) -> bool {
+        let mut seen = known_seen;
+        for &vi in views {
+            let (p, t) = (&self.projs[vi], &self.tables[vi]);
+            let c = p.w2c.transform_point3(x);
+            let depth = -c.z;
+            if depth <= 1e-4 {
+                continue;
+            }
+            let px = p.cx + p.fx * c.x / depth;
+            let py = p.cy - p.fy * c.y / depth;
+            if !(px >= 0.0 && py >= 0.0 && px < p.width && py < p.height) {
+                continue;
+            }
+            if !t.fg[py as usize * t.width as usize + px as usize] {
+                return false;
+            }
+            seen += 1;
+        }
+        seen >= min_seen
+    }
+}
+
+/// Where a voxel is relative to the visual hull, judged at 27 points.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum VoxelClass {
     /// No sample inside.
@@ -193,40 +219,55 @@ impl ShellGrid {
     }
 }
 
-/// Classifies a `g`³ grid spanning `cube`. The hull is sampled on a lattice
-/// of half-voxel spacing ((2g+1)³ point tests, each shared by up to 8
-/// voxels), so every voxel is judged at 27 points: its corners, edge
-/// midpoints, face centres and centre. A voxel is [`VoxelClass::Shell`]
-/// when they disagree, so parts down to about half a voxel thick are found.
+/// Classifies a `g`³ grid spanning `cube` by sampling the hull at 27 points
+/// of each voxel (corners, edge midpoints, face centres, centre: a lattice of
+/// half-voxel spacing). A voxel is [`VoxelClass::Shell`] when they disagree,
+/// so parts down to about half a voxel thick are found. The footprint test
+/// decides voxels wholly outside (or inside) the hull first, so only the
+/// voxels near the surface are sampled.
 pub fn shell(sil: &Silhouettes, cube: &Aabb, g: u32) -> ShellGrid {
     let g = g.clamp(1, MAX_GRID);
     let voxel = (cube.max - cube.min).max_element() / g as f32;
     let origin = cube.min;
-    let n = 2 * g as usize + 1;
+    let radius = 0.5 * 3f32.sqrt() * voxel;
     let half = 0.5 * voxel;
-    let mut lattice = vec![false; n * n * n];
-    lattice.par_chunks_mut(n * n).enumerate().for_each(|(k, slice)| {
-        for j in 0..n {
-            for i in 0..n {
-                slice[j * n + i] =
-                    sil.inside(origin + half * Vec3::new(i as f32, j as f32, k as f32));
-            }
-        }
-    });
     let gu = g as usize;
     let mut class = vec![VoxelClass::Empty; gu * gu * gu];
     class.par_chunks_mut(gu * gu).enumerate().for_each(|(k, slice)| {
         for j in 0..gu {
             for i in 0..gu {
-                let mut inside = 0;
-                for c in 0..27 {
-                    let (a, b, d) = (2 * i + c % 3, 2 * j + (c / 3) % 3, 2 * k + c / 9);
-                    inside += usize::from(lattice[(d * n + b) * n + a]);
+                let lo = origin + voxel * Vec3::new(i as f32, j as f32, k as f32);
+                // The footprint test settles most voxels at once: background
+                // in some view → empty; inside the silhouette in every
+                // view → full. Only the others are sampled point by point.
+                let mut all_inside = true;
+                let mut empty = false;
+                for (p, t) in sil.projs.iter().zip(&sil.tables) {
+                    match judge(p, t, lo + Vec3::splat(half), radius) {
+                        Verdict::Background => {
+                            empty = true;
+                            break;
+                        }
+                        Verdict::Inside => {}
+                        Verdict::Object | Verdict::Unseen => all_inside = false,
+                    }
                 }
-                slice[j * gu + i] = match inside {
-                    0 => VoxelClass::Empty,
-                    27 => VoxelClass::Full,
-                    _ => VoxelClass::Shell,
+                slice[j * gu + i] = if empty {
+                    VoxelClass::Empty
+                } else if all_inside {
+                    VoxelClass::Full
+                } else {
+                    let inside = (0..27)
+                        .filter(|c| {
+                            let o = Vec3::new((c % 3) as f32, ((c / 3) % 3) as f32, (c / 9) as f32);
+                            sil.inside(lo + half * o)
+                        })
+                        .count();
+                    match inside {
+                        0 => VoxelClass::Empty,
+                        27 => VoxelClass::Full,
+                        _ => VoxelClass::Shell,
+                    }
                 };
             }
         }
@@ -240,21 +281,77 @@ pub fn shell(sil: &Silhouettes, cube: &Aabb, g: u32) -> ShellGrid {
 }
 
 /// Texel occupancy of shell quads: a texel holds matter iff its point is
-/// inside the visual hull.
+/// inside the visual hull. Each quad is first judged whole in every view
+/// from the bounding box of its projection: a view showing only background
+/// there empties the quad, views showing only silhouette there need no
+/// per-texel test, so texels are tested only against the views where the
+/// quad straddles the silhouette's edge.
 pub fn texel_occupancy_hull(sil: &Silhouettes, quads: &[Quad], p: u32) -> Vec<bool> {
     let p = p.max(2) as usize;
-    let mut occ = vec![true; quads.len() * p * p];
+    let mut occ = vec![false; quads.len() * p * p];
     let step = 1.0 / (p - 1) as f32;
+    let min_seen = sil.len().div_ceil(2).max(1);
     occ.par_chunks_mut(p * p)
         .zip(quads.par_iter())
-        .for_each(|(cell, q)| {
+        .for_each_init(Vec::new, |edge_views, (cell, q)| {
+            edge_views.clear();
+            let mut seen = 0;
+            for (vi, (pr, t)) in sil.projs.iter().zip(&sil.tables).enumerate() {
+                match judge_quad(pr, t, q) {
+                    QuadVerdict::Background => return, // all texels empty
+                    QuadVerdict::Inside => seen += 1,
+                    QuadVerdict::Edge => edge_views.push(vi),
+                }
+            }
             for ty in 0..p {
                 for tx in 0..p {
-                    cell[ty * p + tx] = sil.inside(q.point(tx as f32 * step, ty as f32 * step));
+                    let x = q.point(tx as f32 * step, ty as f32 * step);
+                    cell[ty * p + tx] = sil.inside_views(x, edge_views, seen, min_seen);
                 }
             }
         });
     occ
+}
+
+/// What one view says about a whole quad.
+enum QuadVerdict {
+    /// Only background around the quad's projection.
+    Background,
+    /// Only silhouette around it.
+    Inside,
+    /// Both, or the quad is not wholly in frame: test texel by texel.
+    Edge,
+}
+
+fn judge_quad(p: &Proj, t: &SummedArea, q: &Quad) -> QuadVerdict {
+    let (mut x0, mut y0, mut x1, mut y1) = (f32::MAX, f32::MAX, f32::MIN, f32::MIN);
+    for c in q.corners() {
+        let v = p.w2c.transform_point3(c);
+        let depth = -v.z;
+        if depth <= 1e-4 {
+            return QuadVerdict::Edge;
+        }
+        let px = p.cx + p.fx * v.x / depth;
+        let py = p.cy - p.fy * v.y / depth;
+        x0 = x0.min(px);
+        x1 = x1.max(px);
+        y0 = y0.min(py);
+        y1 = y1.max(py);
+    }
+    // Pixels whose centre-lookup a texel point may hit: floor of the box.
+    if x0 < 0.0 || y0 < 0.0 || x1 >= p.width || y1 >= p.height {
+        return QuadVerdict::Edge;
+    }
+    let (xa, ya) = (x0.floor() as u32, y0.floor() as u32);
+    let (xb, yb) = ((x1.floor() as u32 + 1).min(t.width), (y1.floor() as u32 + 1).min(t.height));
+    let count = t.count(xa, ya, xb, yb);
+    if count == 0 {
+        QuadVerdict::Background
+    } else if count == (xb - xa) * (yb - ya) {
+        QuadVerdict::Inside
+    } else {
+        QuadVerdict::Edge
+    }
 }
 
 /// The carved occupancy of a g³ grid over a cube.
@@ -351,7 +448,7 @@ pub fn carve(sil: &Silhouettes, cube: &Aabb, g: u32, test: VoxelTest) -> Grid {
                                 keep = false;
                                 break;
                             }
-                            Verdict::Object => seen += 1,
+                            Verdict::Object | Verdict::Inside => seen += 1,
                             Verdict::Unseen => {}
                         }
                     }
@@ -420,6 +517,8 @@ enum Verdict {
     Background,
     /// Its footprint touches the silhouette.
     Object,
+    /// Its footprint lies wholly inside the silhouette.
+    Inside,
     /// The view does not see it whole (outside or across the image border,
     /// or the camera inside its bounding sphere).
     Unseen,
@@ -451,7 +550,10 @@ fn judge(p: &Proj, table: &SummedArea, centre: Vec3, radius: f32) -> Verdict {
     if xa >= xb || ya >= yb {
         return Verdict::Unseen;
     }
-    if table.count(xa, ya, xb, yb) > 0 {
+    let count = table.count(xa, ya, xb, yb);
+    if count == (xb - xa) * (yb - ya) && !clipped {
+        Verdict::Inside
+    } else if count > 0 {
         Verdict::Object
     } else if clipped {
         Verdict::Unseen

@@ -38,6 +38,9 @@ pub struct TexelSettings {
     /// Whether views behind a quad (cos θ < 0) count too (shell quads have
     /// no inside).
     pub two_sided: bool,
+    /// Colour each quad from at most this many views, those that see it
+    /// best (0: every facing view).
+    pub max_views: usize,
 }
 
 impl TexelSettings {
@@ -49,6 +52,7 @@ impl TexelSettings {
             frontal_power: 1.0,
             min_cos: 0.05,
             two_sided: false,
+            max_views: 8,
         }
     }
 }
@@ -480,6 +484,7 @@ fn patch_colours(
             })
         })
         .collect();
+    let facing = best_views(facing, p, occ, s.max_views);
     let mut acc = vec![[0f32; 4]; p * p];
     accumulate(&facing, p, occ, true, &mut acc);
     let seen = acc.iter().filter(|a| a[3] > 1e-4).count();
@@ -501,6 +506,50 @@ fn patch_colours(
         };
     }
     seen
+}
+
+/// The `k` views that see most of the quad, frontal first: each facing
+/// view is scored by its weight times the share of up to 9 of the quad's
+/// occupied texels (spread over the patch) that pass its depth test. Views
+/// that see none of the samples go last. `k == 0` keeps every view.
+fn best_views<'a>(mut facing: Vec<QuadView<'a>>, p: usize, occ: &[bool], k: usize) -> Vec<QuadView<'a>> {
+    if k == 0 || facing.len() <= k {
+        return facing;
+    }
+    let occupied: Vec<usize> = (0..p * p).filter(|&i| occ[i]).collect();
+    if occupied.is_empty() {
+        return facing;
+    }
+    let stride = occupied.len().div_ceil(9);
+    let samples: Vec<usize> = occupied.iter().copied().step_by(stride).collect();
+    let mut scored: Vec<(f32, QuadView<'a>)> = facing
+        .drain(..)
+        .map(|qv| {
+            let cam = &qv.view.cam;
+            let visible = samples
+                .iter()
+                .filter(|&&i| {
+                    let c = qv.origin + (i % p) as f32 * qv.du + (i / p) as f32 * qv.dv;
+                    let Some((px, py, depth)) = cam.to_pixel(c) else {
+                        return false;
+                    };
+                    if !(px >= 0.0 && py >= 0.0 && px < cam.width as f32 && py < cam.height as f32) {
+                        return false;
+                    }
+                    depth <= qv.view.depth[py as usize * cam.width as usize + px as usize] + qv.tol
+                })
+                .count();
+            (qv.weight * visible as f32 / samples.len() as f32, qv)
+        })
+        .collect();
+    // A view that sees no sample may still see some texel: keep the order
+    // of weight among those, after the seeing views.
+    scored.sort_by(|a, b| b.0.total_cmp(&a.0).then(b.1.weight.total_cmp(&a.1.weight)));
+    // If no view sees a sample, keep them all for the full test.
+    if scored.iter().any(|(sc, _)| *sc > 0.0) {
+        scored.truncate(k);
+    }
+    scored.into_iter().map(|(_, qv)| qv).collect()
 }
 
 /// Adds every facing view's weighted premultiplied colour to each texel.

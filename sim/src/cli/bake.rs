@@ -199,8 +199,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         baked.gpu_bytes()
     );
     println!(
-        "time: bake {t_bake:.2} s (carve {:.2}, quads {:.2}, views {:.2}, texels {:.2}), encode+write {t_write:.2} s, load {t_load:.2} s",
-        s.times.carve_s, s.times.quads_s, s.times.views_s, s.times.texels_s
+        "time: bake {t_bake:.2} s (carve {:.2}, quads {:.2}, views {:.2}, colour {:.2}, atlas {:.2}), encode+write {t_write:.2} s, load {t_load:.2} s",
+        s.times.carve_s, s.times.quads_s, s.times.views_s, s.times.colour_s, s.times.atlas_s
     );
     if let Some(out) = &args.out {
         println!("wrote {}", out.display());
