@@ -335,7 +335,11 @@ pub fn bake(views: &[BakeView<'_>], params: &BakeParams) -> Result<BakedObject, 
     let (mlp, code) = mlp_fit::design();
     let atlas = texels::write_atlas(&rgb, &occupancy, &layout, &code);
     let t5 = Instant::now();
-    let counts = (seen, occupied_texels.saturating_sub(seen), occupancy.len() as u64 - occupied_texels);
+    let counts = (
+        seen,
+        occupied_texels.saturating_sub(seen),
+        occupancy.len() as u64 - occupied_texels,
+    );
     Ok(BakedObject {
         params: params.clone(),
         cube,

@@ -90,9 +90,7 @@ impl AtlasLayout {
 
     /// The cell of quad `q`, if it is laid out.
     pub fn cell(&self, q: usize) -> Option<Cell> {
-        let page = self
-            .pages
-            .partition_point(|l| l.first_quad + l.quads <= q);
+        let page = self.pages.partition_point(|l| l.first_quad + l.quads <= q);
         let l = self.pages.get(page)?;
         let c = (q - l.first_quad) as u32;
         Some(Cell {
@@ -131,8 +129,10 @@ impl Atlas {
     pub fn gpu_bytes(&self) -> u64 {
         self.pages
             .iter()
-            .map(|p| 4 * (u64::from(p.feat0.width()) * u64::from(p.feat0.height())
-                + u64::from(p.feat1.width()) * u64::from(p.feat1.height())))
+            .map(|p| {
+                4 * (u64::from(p.feat0.width()) * u64::from(p.feat0.height())
+                    + u64::from(p.feat1.width()) * u64::from(p.feat1.height()))
+            })
             .sum()
     }
 }

@@ -233,45 +233,49 @@ pub fn shell(sil: &Silhouettes, cube: &Aabb, g: u32) -> ShellGrid {
     let half = 0.5 * voxel;
     let gu = g as usize;
     let mut class = vec![VoxelClass::Empty; gu * gu * gu];
-    class.par_chunks_mut(gu * gu).enumerate().for_each(|(k, slice)| {
-        for j in 0..gu {
-            for i in 0..gu {
-                let lo = origin + voxel * Vec3::new(i as f32, j as f32, k as f32);
-                // The footprint test settles most voxels at once: background
-                // in some view → empty; inside the silhouette in every
-                // view → full. Only the others are sampled point by point.
-                let mut all_inside = true;
-                let mut empty = false;
-                for (p, t) in sil.projs.iter().zip(&sil.tables) {
-                    match judge(p, t, lo + Vec3::splat(half), radius) {
-                        Verdict::Background => {
-                            empty = true;
-                            break;
+    class
+        .par_chunks_mut(gu * gu)
+        .enumerate()
+        .for_each(|(k, slice)| {
+            for j in 0..gu {
+                for i in 0..gu {
+                    let lo = origin + voxel * Vec3::new(i as f32, j as f32, k as f32);
+                    // The footprint test settles most voxels at once: background
+                    // in some view → empty; inside the silhouette in every
+                    // view → full. Only the others are sampled point by point.
+                    let mut all_inside = true;
+                    let mut empty = false;
+                    for (p, t) in sil.projs.iter().zip(&sil.tables) {
+                        match judge(p, t, lo + Vec3::splat(half), radius) {
+                            Verdict::Background => {
+                                empty = true;
+                                break;
+                            }
+                            Verdict::Inside => {}
+                            Verdict::Object | Verdict::Unseen => all_inside = false,
                         }
-                        Verdict::Inside => {}
-                        Verdict::Object | Verdict::Unseen => all_inside = false,
                     }
+                    slice[j * gu + i] = if empty {
+                        VoxelClass::Empty
+                    } else if all_inside {
+                        VoxelClass::Full
+                    } else {
+                        let inside = (0..27)
+                            .filter(|c| {
+                                let o =
+                                    Vec3::new((c % 3) as f32, ((c / 3) % 3) as f32, (c / 9) as f32);
+                                sil.inside(lo + half * o)
+                            })
+                            .count();
+                        match inside {
+                            0 => VoxelClass::Empty,
+                            27 => VoxelClass::Full,
+                            _ => VoxelClass::Shell,
+                        }
+                    };
                 }
-                slice[j * gu + i] = if empty {
-                    VoxelClass::Empty
-                } else if all_inside {
-                    VoxelClass::Full
-                } else {
-                    let inside = (0..27)
-                        .filter(|c| {
-                            let o = Vec3::new((c % 3) as f32, ((c / 3) % 3) as f32, (c / 9) as f32);
-                            sil.inside(lo + half * o)
-                        })
-                        .count();
-                    match inside {
-                        0 => VoxelClass::Empty,
-                        27 => VoxelClass::Full,
-                        _ => VoxelClass::Shell,
-                    }
-                };
             }
-        }
-    });
+        });
     ShellGrid {
         g,
         origin,
@@ -343,7 +347,10 @@ fn judge_quad(p: &Proj, t: &SummedArea, q: &Quad) -> QuadVerdict {
         return QuadVerdict::Edge;
     }
     let (xa, ya) = (x0.floor() as u32, y0.floor() as u32);
-    let (xb, yb) = ((x1.floor() as u32 + 1).min(t.width), (y1.floor() as u32 + 1).min(t.height));
+    let (xb, yb) = (
+        (x1.floor() as u32 + 1).min(t.width),
+        (y1.floor() as u32 + 1).min(t.height),
+    );
     let count = t.count(xa, ya, xb, yb);
     if count == 0 {
         QuadVerdict::Background

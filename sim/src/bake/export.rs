@@ -122,7 +122,8 @@ pub fn write(files: &[EncodedFile], dir: &Path) -> anyhow::Result<()> {
     for f in files {
         let path = dir.join(&f.name);
         let tmp = dir.join(format!(".{}.tmp", f.name));
-        std::fs::write(&tmp, &f.bytes).with_context(|| format!("{}: cannot write", tmp.display()))?;
+        std::fs::write(&tmp, &f.bytes)
+            .with_context(|| format!("{}: cannot write", tmp.display()))?;
         std::fs::rename(&tmp, &path)
             .with_context(|| format!("{}: cannot rename into place", path.display()))?;
     }

@@ -174,7 +174,8 @@ fn y_knots(h: &[f64; 4]) -> [f64; SEGMENTS + 1] {
 /// reaches the same largest level step per byte.
 pub fn piecewise_logit() -> PiecewiseLogit {
     let mut h = [0.8, 2.0, 3.3, 4.9];
-    let valid = |h: &[f64; 4]| 0.0 < h[0] && h[0] < h[1] && h[1] < h[2] && h[2] < h[3] && h[3] < Y_END;
+    let valid =
+        |h: &[f64; 4]| 0.0 < h[0] && h[0] < h[1] && h[1] < h[2] && h[2] < h[3] && h[3] < Y_END;
     let mut best = upper_sum(&y_knots(&h));
     let mut step = 0.25;
     while step > 1e-4 {
@@ -299,7 +300,9 @@ pub fn code_for(mlp: &MlpWeights, shade: impl Fn(&MlpWeights, [u8; 4]) -> [u8; 3
 /// once per bake in microseconds).
 pub fn design() -> (MlpWeights, ColourCode) {
     let mlp = network(&piecewise_logit());
-    let code = code_for(&mlp, |m, f0| shade_reference(m, f0, [0; 4], [0.0, 0.0, 1.0]));
+    let code = code_for(&mlp, |m, f0| {
+        shade_reference(m, f0, [0; 4], [0.0, 0.0, 1.0])
+    });
     (mlp, code)
 }
 

@@ -74,7 +74,8 @@ impl Sample {
 /// Writes samples as CSV (via a temporary file and a rename).
 pub fn write_csv(path: &Path, samples: &[Sample]) -> anyhow::Result<()> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create", dir.display()))?;
     }
     let mut text = String::from(CSV_HEADER);
     text.push('\n');
@@ -89,8 +90,8 @@ pub fn write_csv(path: &Path, samples: &[Sample]) -> anyhow::Result<()> {
 
 /// Reads a samples CSV; errors name the line and the field.
 pub fn read_csv(path: &Path) -> anyhow::Result<Vec<Sample>> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
     let mut lines = text.lines().enumerate();
     match lines.next() {
         Some((_, h)) if h.trim() == CSV_HEADER => {}
@@ -104,7 +105,11 @@ pub fn read_csv(path: &Path) -> anyhow::Result<Vec<Sample>> {
         let n = i + 1;
         let f: Vec<&str> = line.split(',').collect();
         if f.len() != 9 {
-            bail!("{}: line {n}: {} fields, expected 9", path.display(), f.len());
+            bail!(
+                "{}: line {n}: {} fields, expected 9",
+                path.display(),
+                f.len()
+            );
         }
         let bad = |name: &str| format!("{}: line {n}: bad {name} `{}`", path.display(), line);
         out.push(Sample {
@@ -163,6 +168,9 @@ pub fn hash_files(files: &[PathBuf]) -> anyhow::Result<u64> {
     Ok(h.finish())
 }
 
+/// One owned training view: camera, image, optional (instance mask, label).
+pub type TrainView = (Camera, RgbaImage, Option<(image::GrayImage, u8)>);
+
 /// The training and test views of one object, owned.
 pub struct ObjectViews {
     /// Object name (the CSV's `object`).
@@ -170,7 +178,7 @@ pub struct ObjectViews {
     /// Content hash of everything the views were read from.
     pub content_hash: u64,
     /// Training views: camera, image, optional (instance mask, label).
-    pub train: Vec<(Camera, RgbaImage, Option<(image::GrayImage, u8)>)>,
+    pub train: Vec<TrainView>,
     /// Held-out views: camera and ground-truth image of the object alone.
     pub test: Vec<(Camera, RgbaImage)>,
 }
@@ -254,8 +262,12 @@ pub fn bake_and_measure(
     lpips: Option<&Lpips>,
 ) -> anyhow::Result<Sample> {
     let views = obj.bake_views();
-    let baked = super::bake(&views, params)
-        .with_context(|| format!("baking {} at g={} p={}", obj.name, params.grid, params.patch))?;
+    let baked = super::bake(&views, params).with_context(|| {
+        format!(
+            "baking {} at g={} p={}",
+            obj.name, params.grid, params.patch
+        )
+    })?;
     let files = export::encode(&baked)?;
     let (q, _) = measure(&baked, &obj.test, render, lpips, false)?;
     Ok(Sample {
@@ -302,7 +314,10 @@ impl Cache {
         h.write(&(obj.test.len() as u64).to_le_bytes());
         format!(
             "{}-g{}-p{}-{:016x}",
-            obj.name, params.grid, params.patch, h.finish()
+            obj.name,
+            params.grid,
+            params.patch,
+            h.finish()
         )
     }
 
@@ -323,8 +338,8 @@ impl Cache {
             key: key.to_string(),
             sample: sample.clone(),
         })?;
-        let mut f =
-            std::fs::File::create(&tmp).with_context(|| format!("{}: cannot write", tmp.display()))?;
+        let mut f = std::fs::File::create(&tmp)
+            .with_context(|| format!("{}: cannot write", tmp.display()))?;
         f.write_all(text.as_bytes())?;
         drop(f);
         std::fs::rename(&tmp, &path).with_context(|| format!("{}: cannot write", path.display()))
@@ -395,7 +410,9 @@ pub fn run(
         }
     }
     // Largest bakes first, so the last ones to finish are short.
-    todo.sort_by_key(|(_, p, _)| std::cmp::Reverse(u64::from(p.grid).pow(2) * u64::from(p.patch).pow(2)));
+    todo.sort_by_key(|(_, p, _)| {
+        std::cmp::Reverse(u64::from(p.grid).pow(2) * u64::from(p.patch).pow(2))
+    });
     let bar = if opts.progress {
         let b = indicatif::ProgressBar::new(todo.len() as u64);
         b.set_style(

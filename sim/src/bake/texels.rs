@@ -162,7 +162,7 @@ struct ViewCam {
 
 impl ViewCam {
     #[inline]
-    fn to_pixel(&self, c: Vec3) -> Option<(f32, f32, f32)> {
+    fn project(&self, c: Vec3) -> Option<(f32, f32, f32)> {
         let depth = -c.z;
         (depth > 1e-4).then(|| {
             (
@@ -247,8 +247,15 @@ fn depth_map(cam: &ViewCam, quads: &[Quad], occupancy: &[bool], patch: u32) -> V
         let mut s = [Vertex::default(); 4];
         let mut ok = true;
         for (i, p) in c.iter().enumerate() {
-            match cam.to_pixel(cam.w2c.transform_point3(*p)) {
-                Some(v) => s[i] = Vertex { x: v.0, y: v.1, inv_depth: 1.0 / v.2, st: CORNER_ST[i] },
+            match cam.project(cam.w2c.transform_point3(*p)) {
+                Some(v) => {
+                    s[i] = Vertex {
+                        x: v.0,
+                        y: v.1,
+                        inv_depth: 1.0 / v.2,
+                        st: CORNER_ST[i],
+                    }
+                }
                 None => ok = false,
             }
         }
@@ -256,7 +263,8 @@ fn depth_map(cam: &ViewCam, quads: &[Quad], occupancy: &[bool], patch: u32) -> V
             continue; // a corner behind the camera: cameras sit outside objects
         }
         let mask = occupancy.get(qi * p * p..(qi + 1) * p * p);
-        let mut tri = |a: Vertex, b: Vertex, c: Vertex| raster_triangle(&mut z, w, h, [a, b, c], mask, p);
+        let mut tri =
+            |a: Vertex, b: Vertex, c: Vertex| raster_triangle(&mut z, w, h, [a, b, c], mask, p);
         tri(s[0], s[1], s[3]);
         tri(s[0], s[3], s[2]);
     }
@@ -316,8 +324,14 @@ fn raster_triangle(
                 continue;
             }
             if let Some(m) = mask {
-                let s = (wa * a.st[0] * a.inv_depth + wb * b.st[0] * b.inv_depth + wc * c.st[0] * c.inv_depth) * d;
-                let t = (wa * a.st[1] * a.inv_depth + wb * b.st[1] * b.inv_depth + wc * c.st[1] * c.inv_depth) * d;
+                let s = (wa * a.st[0] * a.inv_depth
+                    + wb * b.st[0] * b.inv_depth
+                    + wc * c.st[0] * c.inv_depth)
+                    * d;
+                let t = (wa * a.st[1] * a.inv_depth
+                    + wb * b.st[1] * b.inv_depth
+                    + wc * c.st[1] * c.inv_depth)
+                    * d;
                 let tx = (s * last + 0.5).clamp(0.0, last) as usize;
                 let ty = (t * last + 0.5).clamp(0.0, last) as usize;
                 if !m.get(ty * p + tx).copied().unwrap_or(true) {
@@ -512,7 +526,12 @@ fn patch_colours(
 /// view is scored by its weight times the share of up to 9 of the quad's
 /// occupied texels (spread over the patch) that pass its depth test. Views
 /// that see none of the samples go last. `k == 0` keeps every view.
-fn best_views<'a>(mut facing: Vec<QuadView<'a>>, p: usize, occ: &[bool], k: usize) -> Vec<QuadView<'a>> {
+fn best_views<'a>(
+    mut facing: Vec<QuadView<'a>>,
+    p: usize,
+    occ: &[bool],
+    k: usize,
+) -> Vec<QuadView<'a>> {
     if k == 0 || facing.len() <= k {
         return facing;
     }
@@ -530,10 +549,11 @@ fn best_views<'a>(mut facing: Vec<QuadView<'a>>, p: usize, occ: &[bool], k: usiz
                 .iter()
                 .filter(|&&i| {
                     let c = qv.origin + (i % p) as f32 * qv.du + (i / p) as f32 * qv.dv;
-                    let Some((px, py, depth)) = cam.to_pixel(c) else {
+                    let Some((px, py, depth)) = cam.project(c) else {
                         return false;
                     };
-                    if !(px >= 0.0 && py >= 0.0 && px < cam.width as f32 && py < cam.height as f32) {
+                    if !(px >= 0.0 && py >= 0.0 && px < cam.width as f32 && py < cam.height as f32)
+                    {
                         return false;
                     }
                     depth <= qv.view.depth[py as usize * cam.width as usize + px as usize] + qv.tol
@@ -572,7 +592,7 @@ fn accumulate(
                     continue;
                 }
                 let c = row + tx as f32 * qv.du;
-                let Some((px, py, depth)) = cam.to_pixel(c) else {
+                let Some((px, py, depth)) = cam.project(c) else {
                     continue;
                 };
                 if !(px >= 0.0 && py >= 0.0 && px < cam.width as f32 && py < cam.height as f32) {

@@ -99,8 +99,8 @@ pub fn load_object(
         for i in 0..n {
             let f = &t.frames[i];
             let p = dir.join(format!("{}.png", f.file_path));
-            let img = image::open(&p)
-                .with_context(|| format!("{}: cannot read image", p.display()))?;
+            let img =
+                image::open(&p).with_context(|| format!("{}: cannot read image", p.display()))?;
             if !img.color().has_alpha() {
                 bail!("{}: no alpha channel (the silhouette)", p.display());
             }
@@ -157,7 +157,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.sweep {
         return run_sweep(&args);
     }
-    let (capture, g, p) = match (args.capture.as_slice(), args.grid.as_slice(), args.patch.as_slice()) {
+    let (capture, g, p) = match (
+        args.capture.as_slice(),
+        args.grid.as_slice(),
+        args.patch.as_slice(),
+    ) {
         ([c], [g], [p]) => (c, *g, *p),
         _ => bail!("without --sweep, --capture, --grid and --patch take one value each"),
     };
