@@ -22,7 +22,6 @@
 
 pub mod atlas;
 pub mod carve;
-pub mod export;
 pub mod mlp_fit;
 pub mod quads;
 pub mod sweep;
@@ -32,7 +31,9 @@ use glam::Vec3;
 use image::{GrayImage, RgbaImage};
 use std::time::Instant;
 
+use crate::asset::{self, Asset, AssetError, AtlasPair, Mlp, Shape};
 use crate::camera::Camera;
+use nerflex_core::raster::{Quad as RasterQuad, Vertex};
 
 /// Version of the baking algorithm; part of every sweep cache key, so a
 /// change to the baker that changes its output must bump it.
@@ -269,6 +270,81 @@ impl BakedObject {
     pub fn gpu_bytes(&self) -> u64 {
         self.atlas.gpu_bytes()
     }
+
+    /// The asset in the MobileNeRF export layout (one shape per atlas page),
+    /// ready for [`Asset::write`] and the renderer. Consumes the bake so
+    /// the (large) pages move instead of being copied.
+    pub fn into_asset(self) -> Result<Asset, AssetError> {
+        let layout = &self.atlas.layout;
+        let last = (self.params.patch - 1) as f32;
+        // Corner texel offsets in export order (see `quads::Quad`).
+        let tex = [(0.0, 0.0), (0.0, last), (last, 0.0), (last, last)];
+        let mut shapes = Vec::with_capacity(self.atlas.pages.len());
+        for (i, page) in self.atlas.pages.into_iter().enumerate() {
+            let pl = layout.pages[i];
+            let (w, h) = layout.page_size(i);
+            let quads = (pl.first_quad..pl.first_quad + pl.quads)
+                .map(|qi| {
+                    let cell = layout.cell(qi).ok_or_else(|| {
+                        AssetError::Invalid(format!("quad {qi} has no atlas cell"))
+                    })?;
+                    let corners = self.quads[qi].corners();
+                    let v = |k: usize| {
+                        let (tx, ty) = tex[k];
+                        Vertex::at_texel(
+                            corners[k].to_array(),
+                            cell.x as f32 + tx + 0.5,
+                            cell.y as f32 + ty + 0.5,
+                            w,
+                            h,
+                        )
+                    };
+                    Ok(RasterQuad::new([v(0), v(1), v(2), v(3)]))
+                })
+                .collect::<Result<Vec<_>, AssetError>>()?;
+            shapes.push(Shape {
+                index: i,
+                quads,
+                atlas: AtlasPair::new(page.feat0, page.feat1)?,
+            });
+        }
+        let mlp = Mlp::new(self.mlp).map_err(|cause| AssetError::Mlp {
+            path: "mlp.json".into(),
+            cause,
+        })?;
+        Ok(Asset {
+            mlp,
+            obj_num: shapes.len(),
+            shapes,
+            file_bytes: 0,
+        })
+    }
+}
+
+/// Bytes the files of `asset` take in the export layout: exactly what
+/// [`Asset::write`] writes (same encoders), computed in memory so a sweep
+/// need not touch the disk.
+pub fn file_bytes(asset: &Asset) -> Result<u64, AssetError> {
+    use rayon::prelude::*;
+    let json = asset::mlp_json::to_string(asset.mlp.weights(), asset.obj_num).len() as u64;
+    let shapes: Result<Vec<u64>, AssetError> = asset
+        .shapes
+        .par_iter()
+        .map(|s| {
+            let obj = asset::obj::to_string(&s.quads).len() as u64;
+            let png = |img: &image::RgbaImage| {
+                asset::png_io::encode_rgba8(img)
+                    .map(|b| b.len() as u64)
+                    .map_err(|msg| AssetError::Png {
+                        path: format!("shape{}", s.index).into(),
+                        msg,
+                    })
+            };
+            let (a, b) = rayon::join(|| png(s.atlas.feat0()), || png(s.atlas.feat1()));
+            Ok(obj + a? + b?)
+        })
+        .collect();
+    Ok(json + shapes?.iter().sum::<u64>())
 }
 
 /// Bakes one object from its training views.

@@ -38,6 +38,7 @@ fn ball(name: &str, radius: f32) -> ObjectViews {
         content_hash: (radius * 1000.0) as u64,
         train: cams[..6].iter().map(|c| (*c, img(c), None)).collect(),
         test: cams[6..].iter().map(|c| (*c, img(c))).collect(),
+        search_box: None,
     }
 }
 
@@ -99,7 +100,7 @@ fn sweep_reuses_unchanged_results_and_rebakes_changed_ones() {
     let objects = vec![ball("small", 0.5), ball("large", 0.7)];
     let renders = AtomicUsize::new(0);
     // A stand-in renderer (the measurement path is tested elsewhere): grey.
-    let render = |_: &nerflex_sim::bake::BakedObject, c: &Camera| {
+    let render = |_: &nerflex_sim::asset::Asset, c: &Camera| {
         renders.fetch_add(1, Ordering::Relaxed);
         Ok(RgbaImage::from_pixel(
             c.intrinsics.width,
@@ -173,7 +174,7 @@ fn sweep_rejects_duplicate_and_unwritable_names() {
         lpips: None,
         progress: false,
     };
-    let render = |_: &nerflex_sim::bake::BakedObject, _: &Camera| Ok(RgbaImage::new(64, 64));
+    let render = |_: &nerflex_sim::asset::Asset, _: &Camera| Ok(RgbaImage::new(64, 64));
     let e = sweep::run(&[ball("a", 0.5), ball("a", 0.6)], &opts, &render)
         .unwrap_err()
         .to_string();

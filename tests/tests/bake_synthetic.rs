@@ -6,8 +6,9 @@ use glam::Vec3;
 use image::{GrayImage, Luma, Rgba, RgbaImage};
 use nerflex_sim::bake::carve::{self, Silhouettes, VoxelClass};
 use nerflex_sim::bake::{
-    self, atlas::AtlasLayout, mlp_fit, quads, BakeError, BakeParams, BakeView, Geometry, Silhouette,
+    self, atlas::AtlasLayout, quads, BakeError, BakeParams, BakeView, Geometry, Silhouette,
 };
+use nerflex_core::shader::shade_f64;
 use nerflex_sim::camera::{Camera, Intrinsics};
 
 const RED: [u8; 3] = [200, 40, 30];
@@ -121,7 +122,7 @@ fn texel_colour(obj: &bake::BakedObject, q: usize, tx: u32, ty: u32) -> Option<[
     let page = &obj.atlas.pages[cell.page];
     let f0 = page.feat0.get_pixel(cell.x + tx, cell.y + ty).0;
     let f1 = page.feat1.get_pixel(cell.x + tx, cell.y + ty).0;
-    (f0[0] != 0).then(|| mlp_fit::shade_reference(&obj.mlp, f0, f1, [0.0, 0.0, -1.0]))
+    (f0[0] != 0).then(|| shade_f64(&obj.mlp, f0, f1, [0.0, 0.0, -1.0]))
 }
 
 #[test]

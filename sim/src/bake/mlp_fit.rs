@@ -22,82 +22,8 @@
 //! Byte 0 is never used in feat0.R (it means "empty texel"), so an occupied
 //! texel always has feat0.R ≥ 1.
 
-/// Hidden units per layer.
-pub const HIDDEN: usize = 16;
-/// Inputs: 8 features + 3 direction components.
-pub const INPUTS: usize = 11;
-
-/// Weights of the 11 → 16 → 16 → 3 MLP in the export's `W[in][out]` layout.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MlpWeights {
-    /// Layer 0 weights `[in][out]`.
-    pub w0: [[f32; HIDDEN]; INPUTS],
-    /// Layer 0 bias.
-    pub b0: [f32; HIDDEN],
-    /// Layer 1 weights.
-    pub w1: [[f32; HIDDEN]; HIDDEN],
-    /// Layer 1 bias.
-    pub b1: [f32; HIDDEN],
-    /// Layer 2 weights.
-    pub w2: [[f32; 3]; HIDDEN],
-    /// Layer 2 bias.
-    pub b2: [f32; 3],
-}
-
-impl MlpWeights {
-    /// All weights zero.
-    pub fn zero() -> Self {
-        Self {
-            w0: [[0.0; HIDDEN]; INPUTS],
-            b0: [0.0; HIDDEN],
-            w1: [[0.0; HIDDEN]; HIDDEN],
-            b1: [0.0; HIDDEN],
-            w2: [[0.0; 3]; HIDDEN],
-            b2: [0.0; 3],
-        }
-    }
-
-    /// The network in `f64` on decoded inputs (features in [0, 1] / [−1, 1],
-    /// direction), returning rgb in [0, 1].
-    pub fn eval_f64(&self, x: &[f64; INPUTS]) -> [f64; 3] {
-        let mut h1 = [0f64; HIDDEN];
-        for (o, h) in h1.iter_mut().enumerate() {
-            let s: f64 = (0..INPUTS).map(|i| x[i] * f64::from(self.w0[i][o])).sum();
-            *h = (s + f64::from(self.b0[o])).max(0.0);
-        }
-        let mut h2 = [0f64; HIDDEN];
-        for (o, h) in h2.iter_mut().enumerate() {
-            let s: f64 = (0..HIDDEN).map(|i| h1[i] * f64::from(self.w1[i][o])).sum();
-            *h = (s + f64::from(self.b1[o])).max(0.0);
-        }
-        let mut rgb = [0f64; 3];
-        for (o, c) in rgb.iter_mut().enumerate() {
-            let s: f64 = (0..HIDDEN).map(|i| h2[i] * f64::from(self.w2[i][o])).sum();
-            *c = 1.0 / (1.0 + (-(s + f64::from(self.b2[o]))).exp());
-        }
-        rgb
-    }
-}
-
-/// Decodes two stored RGBA8 texels and a direction into the MLP inputs, as
-/// the phone exports do: feature = byte/255, alpha = 2·(A/255) − 1.
-pub fn inputs(feat0: [u8; 4], feat1: [u8; 4], dir: [f32; 3]) -> [f64; INPUTS] {
-    let f = |b: u8| f64::from(b) / 255.0;
-    let a = |b: u8| 2.0 * f64::from(b) / 255.0 - 1.0;
-    [
-        f(feat0[0]),
-        f(feat0[1]),
-        f(feat0[2]),
-        a(feat0[3]),
-        f(feat1[0]),
-        f(feat1[1]),
-        f(feat1[2]),
-        a(feat1[3]),
-        f64::from(dir[0]),
-        f64::from(dir[1]),
-        f64::from(dir[2]),
-    ]
-}
+pub use nerflex_core::shader::{MlpWeights, HIDDEN, INPUTS};
+use nerflex_core::shader::{shade_f64, FixedMlp, ViewDir};
 
 /// For each colour channel, the feature byte to store for each wanted
 /// 8-bit level.
@@ -127,7 +53,7 @@ impl ColourCode {
 /// rounds to level 255, sigmoid(−7) to level 0.
 const Y_END: f64 = 7.0;
 /// Segments of the piecewise-linear logit (8 hinges).
-const SEGMENTS: usize = 9;
+pub const SEGMENTS: usize = 9;
 
 /// The piecewise-linear logit: knots in feature space (x = byte/255) and
 /// the network's pre-sigmoid output there.
@@ -233,7 +159,7 @@ pub fn network(pl: &PiecewiseLogit) -> MlpWeights {
     let slope: Vec<f64> = (0..SEGMENTS)
         .map(|k| (pl.y[k + 1] - pl.y[k]) / (pl.x[k + 1] - pl.x[k]))
         .collect();
-    let mut w = MlpWeights::zero();
+    let mut w = MlpWeights::ZERO;
     for c in 0..3 {
         let base = 5 * c;
         // Layer 0: u0 = f, u_k = relu(f − x_k), k = 1..4.
@@ -263,15 +189,9 @@ pub fn network(pl: &PiecewiseLogit) -> MlpWeights {
     w
 }
 
-/// The 8-bit colour the shader produces for a texel: the renderer's
-/// fixed-point path rounds like this reference to within its stated error.
-pub fn shade_reference(mlp: &MlpWeights, feat0: [u8; 4], feat1: [u8; 4], dir: [f32; 3]) -> [u8; 3] {
-    let rgb = mlp.eval_f64(&inputs(feat0, feat1, dir));
-    rgb.map(|c| (255.0 * c).round().clamp(0.0, 255.0) as u8)
-}
-
-/// The code table of `mlp` under `shade`: for each channel and level, the
-/// byte in 1..=255 whose shaded level is closest (ties: the smaller byte).
+/// The code table of `mlp` under `shade` (feat0 → 8-bit RGB): for each
+/// channel and level, the byte in 1..=255 whose shaded level is closest
+/// (ties: the smaller byte).
 pub fn code_for(mlp: &MlpWeights, shade: impl Fn(&MlpWeights, [u8; 4]) -> [u8; 3]) -> ColourCode {
     let mut out = [[0u8; 256]; 3];
     let mut byte = [[1u8; 256]; 3];
@@ -296,13 +216,21 @@ pub fn code_for(mlp: &MlpWeights, shade: impl Fn(&MlpWeights, [u8; 4]) -> [u8; 3
     ColourCode { byte }
 }
 
-/// The baker's MLP and its colour code (data-independent, so it is built
-/// once per bake in microseconds).
+/// The direction used while building the code table (the network ignores
+/// the direction: its weights are zero).
+const ANY_DIR: [f64; 3] = [0.0, 0.0, -1.0];
+
+/// The baker's MLP and its colour code, built for the renderer's
+/// fixed-point shader ([`FixedMlp`]); data-independent, so it costs
+/// microseconds per bake.
 pub fn design() -> (MlpWeights, ColourCode) {
     let mlp = network(&piecewise_logit());
-    let code = code_for(&mlp, |m, f0| {
-        shade_reference(m, f0, [0; 4], [0.0, 0.0, 1.0])
-    });
+    let code = match (FixedMlp::from_weights(&mlp), ViewDir::from_f64(ANY_DIR)) {
+        (Ok(fixed), Some(dir)) => code_for(&mlp, |_, f0| fixed.shade(f0, [0; 4], dir)),
+        // Cannot happen for these bounded weights; the f64 reference is
+        // then the best available target.
+        _ => code_for(&mlp, |m, f0| shade_f64(m, f0, [0; 4], ANY_DIR)),
+    };
     (mlp, code)
 }
 
@@ -329,7 +257,7 @@ mod tests {
             inp[0] = x;
             inp[1] = x;
             inp[2] = x;
-            let rgb = w.eval_f64(&inp);
+            let rgb = nerflex_core::shader::mlp_f64(&w, &inp);
             let want = 1.0 / (1.0 + (-pl.y[k]).exp());
             for c in rgb {
                 assert!((c - want).abs() < 1e-5, "knot {k}: {c} vs {want}");
@@ -338,20 +266,24 @@ mod tests {
     }
 
     #[test]
-    fn every_level_is_reproduced_within_one() {
+    fn every_level_is_reproduced_within_one_by_both_shaders() {
         let (mlp, code) = design();
+        let fixed = FixedMlp::from_weights(&mlp).unwrap();
+        let dir = [0.3, -0.5, 0.81];
+        let qdir = ViewDir::from_f64(dir).unwrap();
         for c in 0..3 {
             for level in 0..=255u8 {
                 let mut rgb = [128u8; 3];
                 rgb[c] = level;
                 let (f0, f1) = code.features(rgb);
                 assert!(f0[0] >= 1, "occupied texel must have R ≥ 1");
-                let out = shade_reference(&mlp, f0, f1, [0.3, -0.5, 0.81]);
-                assert!(
-                    (i32::from(out[c]) - i32::from(level)).abs() <= 1,
-                    "channel {c} level {level} → {}",
-                    out[c]
-                );
+                for out in [fixed.shade(f0, f1, qdir), shade_f64(&mlp, f0, f1, dir)] {
+                    assert!(
+                        (i32::from(out[c]) - i32::from(level)).abs() <= 1,
+                        "channel {c} level {level} → {}",
+                        out[c]
+                    );
+                }
             }
         }
     }

@@ -19,8 +19,10 @@ use anyhow::{bail, Context as _};
 use image::RgbaImage;
 use serde::{Deserialize, Serialize};
 
-use super::{export, BakeParams, BakeView, BakedObject, BAKER_VERSION};
+use super::{BakeParams, BakeView, BAKER_VERSION};
+use crate::asset::Asset;
 use crate::camera::Camera;
+use crate::capture::Capture;
 use crate::metrics::{Lpips, Metrics};
 
 /// Version of the measurement (renderer + metrics use); part of the cache
@@ -181,9 +183,103 @@ pub struct ObjectViews {
     pub train: Vec<TrainView>,
     /// Held-out views: camera and ground-truth image of the object alone.
     pub test: Vec<(Camera, RgbaImage)>,
+    /// Where to look for the object (from `scene.json`), if known.
+    pub search_box: Option<super::Aabb>,
 }
 
 impl ObjectViews {
+    /// One object of a loaded capture. With `scene.json`, `object` names it
+    /// (optional when the scene has one object) and its instance mask value
+    /// selects its pixels; its bounds, grown by 10 %, are the search box.
+    /// Without, the capture is one object (alpha = silhouette) named after
+    /// its folder. Held-out images keep only the object's pixels.
+    pub fn from_capture(cap: &Capture, object: Option<&str>) -> anyhow::Result<Self> {
+        let folder = cap
+            .dir
+            .file_name()
+            .and_then(|n| n.to_str())
+            .unwrap_or("object")
+            .to_string();
+        let (name, label, search_box) = match (&cap.scene, object) {
+            (Some(scene), want) => {
+                let names: Vec<&str> = scene.objects.iter().map(|o| o.name.as_str()).collect();
+                let info = match want {
+                    Some(w) => scene.object(w).with_context(|| {
+                        format!(
+                            "{}: no object `{w}` in scene.json (it has: {})",
+                            cap.dir.display(),
+                            names.join(", ")
+                        )
+                    })?,
+                    None if scene.objects.len() == 1 => &scene.objects[0],
+                    None => bail!(
+                        "{}: the scene has {} objects ({}); pick one with --object NAME",
+                        cap.dir.display(),
+                        names.len(),
+                        names.join(", ")
+                    ),
+                };
+                let (lo, hi) = (info.bounds_min.map(|v| v as f32), info.bounds_max.map(|v| v as f32));
+                let (lo, hi) = (glam::Vec3::from_array(lo), glam::Vec3::from_array(hi));
+                let margin = 0.1 * (hi - lo).max_element() + 0.01;
+                let b = super::Aabb { min: lo, max: hi }.grown(margin);
+                (info.name.clone(), Some(info.mask_value), Some(b))
+            }
+            (None, Some(w)) if w != folder => bail!(
+                "{}: no scene.json, so the capture is one object (`{folder}`), not `{w}`",
+                cap.dir.display()
+            ),
+            (None, _) => (folder, None, None),
+        };
+        let mut h = Fnv64::default();
+        h.write(name.as_bytes());
+        let mut hash_frame = |cam: &Camera, img: &RgbaImage, mask: Option<&image::GrayImage>| {
+            h.write(format!("{cam:?}").as_bytes());
+            h.write(img.as_raw());
+            if let Some(m) = mask {
+                h.write(m.as_raw());
+            }
+        };
+        for f in cap.train.iter().chain(&cap.test) {
+            hash_frame(&f.camera, &f.image, f.mask.as_ref());
+        }
+        h.write(format!("{label:?} {search_box:?}").as_bytes());
+        let content_hash = h.finish();
+        let train = cap
+            .train
+            .iter()
+            .map(|f| {
+                let mask = match (label, &f.mask) {
+                    (Some(l), Some(m)) => Some((m.clone(), l)),
+                    _ => None,
+                };
+                (f.camera, f.image.clone(), mask)
+            })
+            .collect();
+        let test = cap
+            .test
+            .iter()
+            .map(|f| {
+                let mut img = f.image.clone();
+                if let (Some(l), Some(m)) = (label, &f.mask) {
+                    for (p, mv) in img.pixels_mut().zip(m.pixels()) {
+                        if mv.0[0] != l {
+                            p.0 = [0; 4];
+                        }
+                    }
+                }
+                (f.camera, img)
+            })
+            .collect();
+        Ok(Self {
+            name,
+            content_hash,
+            train,
+            test,
+            search_box,
+        })
+    }
+
     /// The training views as the baker takes them.
     pub fn bake_views(&self) -> Vec<BakeView<'_>> {
         self.train
@@ -203,8 +299,16 @@ impl ObjectViews {
     }
 }
 
-/// Renders a baked object from a camera (the renderer of `nerflex render`).
-pub type RenderFn<'a> = dyn Fn(&BakedObject, &Camera) -> anyhow::Result<RgbaImage> + Sync + 'a;
+/// Renders an asset from a camera.
+pub type RenderFn<'a> = dyn Fn(&Asset, &Camera) -> anyhow::Result<RgbaImage> + Sync + 'a;
+
+/// The renderer of `nerflex render` (fixed-point shader), as a [`RenderFn`].
+pub fn fixed_point_render(asset: &Asset, camera: &Camera) -> anyhow::Result<RgbaImage> {
+    let opts = crate::render::RenderOptions::default();
+    crate::render::try_render_scene(&[asset], camera, &opts)
+        .map(|(img, _)| img)
+        .map_err(|e| anyhow::anyhow!("the renderer rejected the camera: {e}"))
+}
 
 /// Image quality of a bake over the test views (means).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -221,7 +325,7 @@ pub struct Quality {
 /// composited over white by the metrics); returns the means and, if asked,
 /// the renders.
 pub fn measure(
-    obj: &BakedObject,
+    obj: &Asset,
     test: &[(Camera, RgbaImage)],
     render: &RenderFn<'_>,
     lpips: Option<&Lpips>,
@@ -262,21 +366,29 @@ pub fn bake_and_measure(
     lpips: Option<&Lpips>,
 ) -> anyhow::Result<Sample> {
     let views = obj.bake_views();
+    let mut params = params.clone();
+    if params.search_box.is_none() {
+        params.search_box = obj.search_box;
+    }
+    let params = &params;
     let baked = super::bake(&views, params).with_context(|| {
         format!(
             "baking {} at g={} p={}",
             obj.name, params.grid, params.patch
         )
     })?;
-    let files = export::encode(&baked)?;
-    let (q, _) = measure(&baked, &obj.test, render, lpips, false)?;
+    drop(views);
+    let (quads, gpu_bytes) = (baked.quads.len() as u64, baked.gpu_bytes());
+    let asset = baked.into_asset()?;
+    let size_bytes = super::file_bytes(&asset)?;
+    let (q, _) = measure(&asset, &obj.test, render, lpips, false)?;
     Ok(Sample {
         object: obj.name.clone(),
         g: params.grid,
         p: params.patch,
-        size_bytes: export::file_bytes(&files),
-        gpu_bytes: baked.gpu_bytes(),
-        quads: baked.quads.len() as u64,
+        size_bytes,
+        gpu_bytes,
+        quads,
         ssim: q.ssim,
         psnr: q.psnr,
         lpips: q.lpips,
@@ -306,7 +418,7 @@ impl Cache {
         let mut h = Fnv64::default();
         h.write(&obj.content_hash.to_le_bytes());
         h.write(obj.name.as_bytes());
-        h.write(format!("{params:?}").as_bytes());
+        h.write(format!("{params:?} {:?}", obj.search_box).as_bytes());
         h.write(&BAKER_VERSION.to_le_bytes());
         h.write(&MEASURE_VERSION.to_le_bytes());
         h.write(&[u8::from(with_lpips)]);

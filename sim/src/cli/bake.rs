@@ -7,8 +7,8 @@ use std::time::Instant;
 use anyhow::{bail, Context as _};
 
 use crate::bake::sweep::{self, Cache, ObjectViews, SweepOptions};
-use crate::bake::{self, carve::VoxelTest, export, BakeParams};
-use crate::camera::Transforms;
+use crate::bake::{self, carve::VoxelTest, BakeParams};
+use crate::capture::Capture;
 use crate::metrics::Lpips;
 
 /// Flags of `nerflex bake`.
@@ -18,6 +18,9 @@ pub struct Args {
     /// `transforms_test.json`, images); with `--sweep`, repeat for more objects.
     #[arg(long, required = true)]
     pub capture: Vec<PathBuf>,
+    /// Object(s) of a multi-object capture (`scene.json` names), comma-separated.
+    #[arg(long, value_delimiter = ',')]
+    pub object: Vec<String>,
     /// Grid g (voxels per edge); with `--sweep`, a comma-separated list.
     #[arg(long, value_delimiter = ',', required = true)]
     pub grid: Vec<u32>,
@@ -77,58 +80,26 @@ fn parse_voxel_test(s: &str) -> Result<VoxelTest, String> {
     }
 }
 
-/// Reads one object of a NeRF-synthetic folder: training views, test views,
-/// and a content hash of every file read.
-pub fn load_object(
-    dir: &Path,
-    max_views: Option<usize>,
-    max_test_views: Option<usize>,
-) -> anyhow::Result<ObjectViews> {
-    let name = dir
-        .file_name()
-        .and_then(|n| n.to_str())
-        .context("capture folder has no name")?
-        .to_string();
-    let mut files = Vec::new();
-    let mut read_split = |split: &str, limit: Option<usize>| -> anyhow::Result<Vec<_>> {
-        let tpath = dir.join(format!("transforms_{split}.json"));
-        let t = Transforms::read(&tpath)?;
-        files.push(tpath.clone());
-        let n = limit.unwrap_or(usize::MAX).min(t.frames.len());
-        let mut out = Vec::with_capacity(n);
-        for i in 0..n {
-            let f = &t.frames[i];
-            let p = dir.join(format!("{}.png", f.file_path));
-            let img =
-                image::open(&p).with_context(|| format!("{}: cannot read image", p.display()))?;
-            if !img.color().has_alpha() {
-                bail!("{}: no alpha channel (the silhouette)", p.display());
-            }
-            let img = img.to_rgba8();
-            let cam = t
-                .camera(i, img.width(), img.height())
-                .with_context(|| format!("{}: frame {i} missing", tpath.display()))?;
-            files.push(p);
-            out.push((cam, img));
+/// Loads every object the flags name: each `--capture`, and in it each
+/// `--object` (or its only object).
+pub fn load_objects(args: &Args) -> anyhow::Result<Vec<ObjectViews>> {
+    let mut out = Vec::new();
+    for dir in &args.capture {
+        let mut cap = Capture::load(dir)?;
+        if let Some(n) = args.max_views {
+            cap.train.truncate(n.max(1));
         }
-        Ok(out)
-    };
-    let train = read_split("train", max_views)?;
-    let test = read_split("test", max_test_views)?;
-    let content_hash = sweep::hash_files(&files)?;
-    Ok(ObjectViews {
-        name,
-        content_hash,
-        train: train.into_iter().map(|(c, i)| (c, i, None)).collect(),
-        test,
-    })
-}
-
-/// The renderer used to measure bakes.
-fn renderer() -> Box<sweep::RenderFn<'static>> {
-    Box::new(|_obj, _cam| {
-        anyhow::bail!("measuring needs the renderer of `nerflex render`, which is not there yet")
-    })
+        if let Some(n) = args.max_test_views {
+            cap.test.truncate(n);
+        }
+        if args.object.is_empty() {
+            out.push(ObjectViews::from_capture(&cap, None)?);
+        }
+        for name in &args.object {
+            out.push(ObjectViews::from_capture(&cap, Some(name))?);
+        }
+    }
+    Ok(out)
 }
 
 fn lpips(args: &Args) -> anyhow::Result<Option<Lpips>> {
@@ -157,40 +128,44 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.sweep {
         return run_sweep(&args);
     }
-    let (capture, g, p) = match (
-        args.capture.as_slice(),
-        args.grid.as_slice(),
-        args.patch.as_slice(),
-    ) {
-        ([c], [g], [p]) => (c, *g, *p),
-        _ => bail!("without --sweep, --capture, --grid and --patch take one value each"),
+    let (g, p) = match (args.grid.as_slice(), args.patch.as_slice()) {
+        ([g], [p]) => (*g, *p),
+        _ => bail!("without --sweep, --grid and --patch take one value each"),
     };
     if args.out.is_none() && !args.measure {
         bail!("nothing to do: give --out DIR to write the asset and/or --measure");
     }
     let t0 = Instant::now();
-    let obj = load_object(capture, args.max_views, args.max_test_views)?;
+    let objects = load_objects(&args)?;
+    let [obj] = objects.as_slice() else {
+        bail!("without --sweep, bake one object: give one --capture and at most one --object");
+    };
     let t_load = t0.elapsed().as_secs_f64();
     let mut params = base_params(&args);
     params.grid = g;
     params.patch = p;
+    params.search_box = obj.search_box;
     let t1 = Instant::now();
     let views = obj.bake_views();
     let baked = bake::bake(&views, &params)?;
     let t_bake = t1.elapsed().as_secs_f64();
-    let t2 = Instant::now();
-    let files = export::encode(&baked)?;
-    if let Some(out) = &args.out {
-        export::write(&files, out)?;
-    }
-    let t_write = t2.elapsed().as_secs_f64();
-    let s = &baked.stats;
-    println!(
-        "{}: g={g} p={p} from {} views: {} quads, {} atlas pages, {} occupied voxels",
-        obj.name,
-        views.len(),
+    let s = baked.stats;
+    let (quads, pages, gpu_bytes) = (
         baked.quads.len(),
         baked.atlas.pages.len(),
+        baked.gpu_bytes(),
+    );
+    let asset = baked.into_asset()?;
+    let t2 = Instant::now();
+    let file_bytes = match &args.out {
+        Some(out) => asset.write(out)?,
+        None => bake::file_bytes(&asset)?,
+    };
+    let t_write = t2.elapsed().as_secs_f64();
+    println!(
+        "{}: g={g} p={p} from {} views: {quads} quads, {pages} atlas page pair(s), {} occupied voxels",
+        obj.name,
+        views.len(),
         s.occupied_voxels,
     );
     println!(
@@ -198,9 +173,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         s.seen_texels, s.unseen_texels, s.empty_texels
     );
     println!(
-        "size: {} file bytes, {} GPU bytes",
-        export::file_bytes(&files),
-        baked.gpu_bytes()
+        "size: {file_bytes} file bytes ({:.1} MiB), {gpu_bytes} GPU bytes ({:.1} MiB)",
+        file_bytes as f64 / 1048576.0,
+        gpu_bytes as f64 / 1048576.0
     );
     println!(
         "time: bake {t_bake:.2} s (carve {:.2}, quads {:.2}, views {:.2}, colour {:.2}, atlas {:.2}), encode+write {t_write:.2} s, load {t_load:.2} s",
@@ -211,11 +186,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if args.measure {
         let net = lpips(&args)?;
-        let render = renderer();
         let (q, renders) = sweep::measure(
-            &baked,
+            &asset,
             &obj.test,
-            &*render,
+            &sweep::fixed_point_render,
             net.as_ref(),
             args.renders.is_some(),
         )?;
@@ -240,11 +214,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 fn run_sweep(args: &Args) -> anyhow::Result<()> {
-    let objects = args
-        .capture
-        .iter()
-        .map(|c| load_object(c, args.max_views, args.max_test_views))
-        .collect::<anyhow::Result<Vec<_>>>()?;
+    let objects = load_objects(args)?;
     let net = lpips(args)?;
     let cache_dir = args.cache.clone().unwrap_or_else(|| {
         args.csv
@@ -262,8 +232,7 @@ fn run_sweep(args: &Args) -> anyhow::Result<()> {
         progress: true,
     };
     let t0 = Instant::now();
-    let render = renderer();
-    let report = sweep::run(&objects, &opts, &*render)?;
+    let report = sweep::run(&objects, &opts, &sweep::fixed_point_render)?;
     sweep::write_csv(&args.csv, &report.samples)?;
     println!(
         "{} samples ({} baked, {} reused from {}) in {:.1} s → {}",
