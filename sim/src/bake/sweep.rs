@@ -583,3 +583,76 @@ pub fn run(
         baked,
     })
 }
+
+/// Draws one picture per object of `samples` into `dir`
+/// (`{object}.png`): GPU bytes, file bytes and SSIM against g, one line
+/// per p, g on a log₂ axis and sizes on a log₁₀ axis. Returns the files.
+pub fn plot_objects(samples: &[Sample], dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    use crate::plot::{Chart, LegendPosition, Scale, Series};
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    let mut objects: Vec<&str> = Vec::new();
+    for s in samples {
+        if !objects.contains(&s.object.as_str()) {
+            objects.push(&s.object);
+        }
+    }
+    let (w, h) = (360u32, 280u32);
+    let mut written = Vec::new();
+    for obj in objects {
+        let mine: Vec<&Sample> = samples.iter().filter(|s| s.object == obj).collect();
+        let mut ps: Vec<u32> = mine.iter().map(|s| s.p).collect();
+        ps.sort_unstable();
+        ps.dedup();
+        let series = |f: &dyn Fn(&Sample) -> f64| -> Vec<Series> {
+            ps.iter()
+                .map(|&p| {
+                    let mut pts: Vec<(f64, f64)> = mine
+                        .iter()
+                        .filter(|s| s.p == p)
+                        .map(|s| (f64::from(s.g), f(s)))
+                        .collect();
+                    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+                    Series::line_points(format!("p = {p}"), pts)
+                })
+                .collect()
+        };
+        let mib = 1024.0 * 1024.0;
+        let charts = [
+            ("GPU size", "GPU MiB (log)", series(&|s| s.gpu_bytes as f64 / mib), true),
+            ("file size", "file MiB (log)", series(&|s| s.size_bytes as f64 / mib), true),
+            ("quality", "SSIM", series(&|s| s.ssim), false),
+        ];
+        let mut sheet = tiny_skia::Pixmap::new(w * 3, h).context("picture size")?;
+        sheet.fill(tiny_skia::Color::WHITE);
+        for (i, (title, ylabel, lines, log)) in charts.into_iter().enumerate() {
+            let mut chart = Chart::new(format!("{obj}: {title}"))
+                .x_label("grid g")
+                .y_label(ylabel)
+                .x_log2()
+                .legend(if log {
+                    LegendPosition::TopLeft
+                } else {
+                    LegendPosition::BottomRight
+                });
+            if log {
+                chart = chart.y_scale(Scale::Log10);
+            }
+            for s in lines {
+                chart = chart.series(s);
+            }
+            let pm = chart.render(w, h)?;
+            sheet.draw_pixmap(
+                (i as u32 * w) as i32,
+                0,
+                pm.as_ref(),
+                &tiny_skia::PixmapPaint::default(),
+                tiny_skia::Transform::identity(),
+                None,
+            );
+        }
+        let path = dir.join(format!("{obj}.png"));
+        crate::plot::save_png(&sheet, &path)?;
+        written.push(path);
+    }
+    Ok(written)
+}

@@ -1,7 +1,7 @@
 //! `nerflex bake`: bake MobileNeRF-format assets from posed captures, one
 //! (g, p) or a sweep, optionally measured against the held-out views.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context as _};
@@ -10,6 +10,10 @@ use crate::bake::sweep::{self, Cache, ObjectViews, SweepOptions};
 use crate::bake::{self, carve::VoxelTest, BakeParams};
 use crate::capture::Capture;
 use crate::metrics::Lpips;
+
+/// Default folder of the sweep's sample cache (inside cargo's ignored
+/// `target/`: a cache, not a result).
+pub const DEFAULT_CACHE: &str = "target/bake-cache";
 
 /// Flags of `nerflex bake`.
 #[derive(Debug, clap::Args)]
@@ -42,7 +46,11 @@ pub struct Args {
     /// The samples CSV of `--sweep`.
     #[arg(long, default_value = "results/bake/samples.csv")]
     pub csv: PathBuf,
-    /// Cache folder of measured samples (default: `cache/` beside the CSV).
+    /// With `--sweep`: also draw size-vs-g and SSIM-vs-g pictures, one per
+    /// object, into this folder.
+    #[arg(long)]
+    pub plots: Option<PathBuf>,
+    /// Cache folder of measured samples (default: target/bake-cache).
     #[arg(long)]
     pub cache: Option<PathBuf>,
     /// Bake everything again, ignoring the cache.
@@ -216,12 +224,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 fn run_sweep(args: &Args) -> anyhow::Result<()> {
     let objects = load_objects(args)?;
     let net = lpips(args)?;
-    let cache_dir = args.cache.clone().unwrap_or_else(|| {
-        args.csv
-            .parent()
-            .unwrap_or_else(|| Path::new("."))
-            .join("cache")
-    });
+    let cache_dir = args.cache.clone().unwrap_or_else(|| PathBuf::from(DEFAULT_CACHE));
     let opts = SweepOptions {
         grids: args.grid.clone(),
         patches: args.patch.clone(),
@@ -234,6 +237,11 @@ fn run_sweep(args: &Args) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let report = sweep::run(&objects, &opts, &sweep::fixed_point_render)?;
     sweep::write_csv(&args.csv, &report.samples)?;
+    if let Some(dir) = &args.plots {
+        for p in sweep::plot_objects(&report.samples, dir)? {
+            println!("wrote {}", p.display());
+        }
+    }
     println!(
         "{} samples ({} baked, {} reused from {}) in {:.1} s → {}",
         report.samples.len(),
