@@ -4,11 +4,11 @@
 
 use glam::Vec3;
 use image::{GrayImage, Luma, Rgba, RgbaImage};
+use nerflex_core::shader::shade_f64;
 use nerflex_sim::bake::carve::{self, Silhouettes, VoxelClass};
 use nerflex_sim::bake::{
     self, atlas::AtlasLayout, quads, BakeError, BakeParams, BakeView, Geometry, Silhouette,
 };
-use nerflex_core::shader::shade_f64;
 use nerflex_sim::camera::{Camera, Intrinsics};
 
 const RED: [u8; 3] = [200, 40, 30];
@@ -428,4 +428,35 @@ fn boundary_quads_of_a_single_voxel_are_its_six_faces() {
     normals.sort();
     normals.dedup();
     assert_eq!(normals.len(), 6);
+}
+
+#[test]
+fn the_renderer_reproduces_the_baked_colours() {
+    // One flat colour everywhere: every drawn pixel of the fixed-point
+    // render must show it (the texel code and MLP are exact to 1 level;
+    // allow 2 for the colour average of edge texels).
+    struct Flat;
+    impl Scene for Flat {
+        fn hit(&self, o: Vec3, d: Vec3) -> Option<f32> {
+            Sphere(0.6).hit(o, d)
+        }
+        fn colour(&self, _p: Vec3) -> [u8; 3] {
+            [150, 90, 201]
+        }
+    }
+    let (cams, imgs) = capture(&Flat, 8, 96);
+    let v = views(&cams, &imgs);
+    let asset = bake::bake(&v, &BakeParams::new(12, 5))
+        .unwrap()
+        .into_asset()
+        .unwrap();
+    let img = nerflex_sim::bake::sweep::fixed_point_render(&asset, &cams[3]).unwrap();
+    let mut drawn = 0;
+    for p in img.pixels().filter(|p| p.0[3] == 255) {
+        drawn += 1;
+        for (c, want) in p.0[..3].iter().zip([150u8, 90, 201]) {
+            assert!(c.abs_diff(want) <= 2, "pixel {:?}", p.0);
+        }
+    }
+    assert!(drawn > 1000, "{drawn} pixels drawn");
 }

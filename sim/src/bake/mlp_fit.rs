@@ -22,8 +22,8 @@
 //! Byte 0 is never used in feat0.R (it means "empty texel"), so an occupied
 //! texel always has feat0.R ≥ 1.
 
-pub use nerflex_core::shader::{MlpWeights, HIDDEN, INPUTS};
 use nerflex_core::shader::{shade_f64, FixedMlp, ViewDir};
+pub use nerflex_core::shader::{MlpWeights, HIDDEN, INPUTS};
 
 /// For each colour channel, the feature byte to store for each wanted
 /// 8-bit level.

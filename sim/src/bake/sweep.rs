@@ -219,7 +219,10 @@ impl ObjectViews {
                         names.join(", ")
                     ),
                 };
-                let (lo, hi) = (info.bounds_min.map(|v| v as f32), info.bounds_max.map(|v| v as f32));
+                let (lo, hi) = (
+                    info.bounds_min.map(|v| v as f32),
+                    info.bounds_max.map(|v| v as f32),
+                );
                 let (lo, hi) = (glam::Vec3::from_array(lo), glam::Vec3::from_array(hi));
                 let margin = 0.1 * (hi - lo).max_element() + 0.01;
                 let b = super::Aabb { min: lo, max: hi }.grown(margin);
@@ -618,8 +621,18 @@ pub fn plot_objects(samples: &[Sample], dir: &Path) -> anyhow::Result<Vec<PathBu
         };
         let mib = 1024.0 * 1024.0;
         let charts = [
-            ("GPU size", "GPU MiB (log)", series(&|s| s.gpu_bytes as f64 / mib), true),
-            ("file size", "file MiB (log)", series(&|s| s.size_bytes as f64 / mib), true),
+            (
+                "GPU size",
+                "GPU MiB (log)",
+                series(&|s| s.gpu_bytes as f64 / mib),
+                true,
+            ),
+            (
+                "file size",
+                "file MiB (log)",
+                series(&|s| s.size_bytes as f64 / mib),
+                true,
+            ),
             ("quality", "SSIM", series(&|s| s.ssim), false),
         ];
         let mut sheet = tiny_skia::Pixmap::new(w * 3, h).context("picture size")?;

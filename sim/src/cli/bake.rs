@@ -224,7 +224,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 fn run_sweep(args: &Args) -> anyhow::Result<()> {
     let objects = load_objects(args)?;
     let net = lpips(args)?;
-    let cache_dir = args.cache.clone().unwrap_or_else(|| PathBuf::from(DEFAULT_CACHE));
+    let cache_dir = args
+        .cache
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(DEFAULT_CACHE));
     let opts = SweepOptions {
         grids: args.grid.clone(),
         patches: args.patch.clone(),
