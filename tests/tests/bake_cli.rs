@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use nerflex_sim::asset::Asset;
 use nerflex_sim::bake::carve::VoxelTest;
-use nerflex_sim::bake::sweep;
+use nerflex_sim::bake::{sweep, Geometry};
 use nerflex_sim::cli::bake::{run, Args};
 use nerflex_sim::procedural::{
     arrange, make_capture, CaptureSpec, Layout, ObjectKind, RenderOptions,
@@ -54,6 +54,7 @@ fn args(capture: &Path) -> Args {
         max_test_views: None,
         frontal_power: 1.0,
         voxel_test: VoxelTest::Centre,
+        geometry: Geometry::Shell,
         lpips_weights: Some(PathBuf::from("/nonexistent/lpips.safetensors")),
     }
 }

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{bail, Context as _};
 
 use crate::bake::sweep::{self, Cache, ObjectViews, SweepOptions};
-use crate::bake::{self, carve::VoxelTest, BakeParams};
+use crate::bake::{self, carve::VoxelTest, BakeParams, Geometry};
 use crate::capture::Capture;
 use crate::metrics::Lpips;
 
@@ -68,13 +68,27 @@ pub struct Args {
     /// Exponent k of the frontal weighting cos(θ)^k of a view's colour.
     #[arg(long, default_value_t = 1.0)]
     pub frontal_power: f32,
-    /// Which voxels survive carving: centre, any-point or footprint.
+    /// Quad placement: shell (faces of every voxel the hull's surface
+    /// crosses, texel alpha from the hull) or boundary (faces between
+    /// carved and empty voxels).
+    #[arg(long, default_value = "shell", value_parser = parse_geometry)]
+    pub geometry: Geometry,
+    /// With `--geometry boundary`: which voxels survive carving (centre,
+    /// any-point or footprint).
     #[arg(long, default_value = "centre", value_parser = parse_voxel_test)]
     pub voxel_test: VoxelTest,
     /// LPIPS weights (default: `lpips/` in the shared data folder; LPIPS is
     /// left out if absent).
     #[arg(long)]
     pub lpips_weights: Option<PathBuf>,
+}
+
+fn parse_geometry(s: &str) -> Result<Geometry, String> {
+    match s {
+        "shell" => Ok(Geometry::Shell),
+        "boundary" => Ok(Geometry::Boundary),
+        _ => Err(format!("`{s}` is not a geometry (shell, boundary)")),
+    }
 }
 
 fn parse_voxel_test(s: &str) -> Result<VoxelTest, String> {
@@ -128,6 +142,7 @@ fn base_params(args: &Args) -> BakeParams {
     let mut p = BakeParams::new(0, 0);
     p.frontal_power = args.frontal_power;
     p.voxel_test = args.voxel_test;
+    p.geometry = args.geometry;
     p
 }
 
