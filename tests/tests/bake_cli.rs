@@ -44,6 +44,7 @@ fn args(capture: &Path) -> Args {
         out: None,
         measure: false,
         renders: None,
+        renders_size: None,
         sweep: false,
         csv: PathBuf::from("unused.csv"),
         plots: None,
@@ -67,6 +68,7 @@ fn bake_one_object_writes_a_loadable_asset_and_measures_it() {
     a.object = vec!["ball".into()];
     a.out = Some(tmp.path().join("ball"));
     a.renders = Some(tmp.path().join("renders"));
+    a.renders_size = Some(48);
     a.measure = true;
     a.lpips_weights = None; // default location; skipped if absent
     run(a).unwrap();
@@ -74,6 +76,8 @@ fn bake_one_object_writes_a_loadable_asset_and_measures_it() {
     assert!(asset.report().quads > 50);
     assert!(tmp.path().join("renders/test_0.png").is_file());
     assert!(tmp.path().join("renders/test_1.png").is_file());
+    let truth = image::open(tmp.path().join("renders/truth_1.png")).unwrap();
+    assert_eq!((truth.width(), truth.height()), (48, 48));
 }
 
 #[test]

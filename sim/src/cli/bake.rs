@@ -37,9 +37,14 @@ pub struct Args {
     /// Render the held-out test views and report SSIM, PSNR, LPIPS.
     #[arg(long)]
     pub measure: bool,
-    /// With `--measure`: also write the renders (`test_{i}.png`) here.
+    /// With `--measure`: also write each test view's render and ground
+    /// truth (`test_{i}.png`, `truth_{i}.png`, over white) here.
     #[arg(long)]
     pub renders: Option<PathBuf>,
+    /// Side (pixels) the `--renders` pictures are scaled down to (default:
+    /// full size).
+    #[arg(long)]
+    pub renders_size: Option<u32>,
     /// Bake and measure every (capture, g, p) into a samples CSV.
     #[arg(long)]
     pub sweep: bool,
@@ -138,6 +143,26 @@ fn lpips(args: &Args) -> anyhow::Result<Option<Lpips>> {
     }
 }
 
+/// A picture for people: composited over white, optionally scaled so its
+/// longer side is `size` pixels.
+fn picture(img: &image::RgbaImage, size: Option<u32>) -> image::RgbaImage {
+    let white = image::RgbaImage::from_fn(img.width(), img.height(), |x, y| {
+        let p = img.get_pixel(x, y).0;
+        let a = u32::from(p[3]);
+        let c = |v: u8| ((u32::from(v) * a + 255 * (255 - a) + 127) / 255) as u8;
+        image::Rgba([c(p[0]), c(p[1]), c(p[2]), 255])
+    });
+    match size {
+        Some(s) if s > 0 && s < img.width().max(img.height()) => {
+            let k = f64::from(s) / f64::from(img.width().max(img.height()));
+            let w = ((f64::from(img.width()) * k).round() as u32).max(1);
+            let h = ((f64::from(img.height()) * k).round() as u32).max(1);
+            image::imageops::resize(&white, w, h, image::imageops::FilterType::Triangle)
+        }
+        _ => white,
+    }
+}
+
 fn base_params(args: &Args) -> BakeParams {
     let mut p = BakeParams::new(0, 0);
     p.frontal_power = args.frontal_power;
@@ -219,10 +244,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if let Some(dir) = &args.renders {
             std::fs::create_dir_all(dir)
                 .with_context(|| format!("{}: cannot create", dir.display()))?;
-            for (i, img) in renders.iter().enumerate() {
-                let path = dir.join(format!("test_{i}.png"));
-                img.save(&path)
-                    .with_context(|| format!("{}: cannot write", path.display()))?;
+            for (i, (img, (_, truth))) in renders.iter().zip(&obj.test).enumerate() {
+                for (name, pic) in [("test", img), ("truth", truth)] {
+                    let path = dir.join(format!("{name}_{i}.png"));
+                    picture(pic, args.renders_size)
+                        .save(&path)
+                        .with_context(|| format!("{}: cannot write", path.display()))?;
+                }
             }
         }
         println!(
