@@ -184,3 +184,35 @@ fn sweep_rejects_duplicate_and_unwritable_names() {
         .to_string();
     assert!(e.contains("CSV"), "{e}");
 }
+
+#[test]
+fn monotonicity_report_names_the_breaks() {
+    let s = |g, p, gpu, ssim| Sample {
+        object: "x".into(),
+        g,
+        p,
+        size_bytes: gpu,
+        gpu_bytes: gpu,
+        quads: 1,
+        ssim,
+        psnr: 0.0,
+        lpips: None,
+    };
+    let samples = vec![
+        s(16, 5, 100, 0.70),
+        s(16, 9, 200, 0.72),
+        s(32, 5, 300, 0.69),
+        s(32, 9, 250, 0.75),
+    ];
+    let r = sweep::monotonicity_report(&samples, 0.005);
+    assert_eq!(r.len(), 2, "{r:?}");
+    assert!(
+        r[0].contains("x (16, 5) → (32, 5): SSIM falls with g"),
+        "{r:?}"
+    );
+    assert!(
+        r[1].contains("x (32, 5) → (32, 9): size does not grow with p"),
+        "{r:?}"
+    );
+    assert!(sweep::monotonicity_report(&samples[..2], 0.0).is_empty());
+}

@@ -669,3 +669,49 @@ pub fn plot_objects(samples: &[Sample], dir: &Path) -> anyhow::Result<Vec<PathBu
     }
     Ok(written)
 }
+
+/// Where a sweep's samples break "size grows and quality rises with g and
+/// with p": one line per pair of neighbouring configurations (next g at
+/// the same p, next p at the same g) whose size does not grow or whose SSIM
+/// falls by more than `ssim_tolerance`.
+pub fn monotonicity_report(samples: &[Sample], ssim_tolerance: f64) -> Vec<String> {
+    let mut out = Vec::new();
+    let find = |o: &str, g: u32, p: u32| {
+        samples
+            .iter()
+            .find(|s| s.object == o && s.g == g && s.p == p)
+    };
+    let mut gs: Vec<u32> = samples.iter().map(|s| s.g).collect();
+    let mut ps: Vec<u32> = samples.iter().map(|s| s.p).collect();
+    gs.sort_unstable();
+    gs.dedup();
+    ps.sort_unstable();
+    ps.dedup();
+    for a in samples {
+        let next_g = gs
+            .iter()
+            .find(|&&g| g > a.g)
+            .and_then(|&g| find(&a.object, g, a.p));
+        let next_p = ps
+            .iter()
+            .find(|&&p| p > a.p)
+            .and_then(|&p| find(&a.object, a.g, p));
+        for (what, b) in [("g", next_g), ("p", next_p)] {
+            let Some(b) = b else { continue };
+            let step = format!("{} ({}, {}) → ({}, {})", a.object, a.g, a.p, b.g, b.p);
+            if b.gpu_bytes <= a.gpu_bytes || b.size_bytes <= a.size_bytes {
+                out.push(format!(
+                    "{step}: size does not grow with {what} (GPU {} → {}, file {} → {})",
+                    a.gpu_bytes, b.gpu_bytes, a.size_bytes, b.size_bytes
+                ));
+            }
+            if b.ssim < a.ssim - ssim_tolerance {
+                out.push(format!(
+                    "{step}: SSIM falls with {what} ({:.4} → {:.4})",
+                    a.ssim, b.ssim
+                ));
+            }
+        }
+    }
+    out
+}

@@ -288,6 +288,15 @@ fn run_sweep(args: &Args) -> anyhow::Result<()> {
             println!("wrote {}", p.display());
         }
     }
+    let breaks = sweep::monotonicity_report(&report.samples, 0.0);
+    println!(
+        "{} neighbouring configuration pairs where size does not grow or SSIM falls{}",
+        breaks.len(),
+        if breaks.is_empty() { "" } else { ":" }
+    );
+    for b in &breaks {
+        println!("  {b}");
+    }
     println!(
         "{} samples ({} baked, {} reused from {}) in {:.1} s → {}",
         report.samples.len(),
