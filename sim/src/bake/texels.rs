@@ -77,8 +77,9 @@ impl Level {
     fn bilinear(&self, x: f32, y: f32) -> [f32; 4] {
         let fx = (x - 0.5).clamp(0.0, (self.width - 1) as f32);
         let fy = (y - 0.5).clamp(0.0, (self.height - 1) as f32);
-        let x0 = fx.floor() as u32;
-        let y0 = fy.floor() as u32;
+        // fx, fy ≥ 0: truncation is floor, without a libm call.
+        let x0 = fx as u32;
+        let y0 = fy as u32;
         let x1 = (x0 + 1).min(self.width - 1);
         let y1 = (y0 + 1).min(self.height - 1);
         let (ax, ay) = (fx - x0 as f32, fy - y0 as f32);
