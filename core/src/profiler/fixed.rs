@@ -171,6 +171,9 @@ fn base_q32(n: u32, offset: Offset, max: u64) -> Option<u128> {
         .then_some(u128::from(v))
 }
 
+/// Fraction bits of the size constant `m` and of the size before rounding.
+const SIZE_FRAC: u32 = 16;
+
 /// The size model `S = k·G^e·P² + m` in fixed point.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct SizeModel {
@@ -180,27 +183,27 @@ pub struct SizeModel {
     pub a: Offset,
     /// Offset added to p.
     pub b: Offset,
-    /// Constant part (MLP, headers), whole bytes.
-    pub m: Bytes,
+    /// Constant part (MLP, headers) in bytes, Q16 (`raw / 2^16` bytes), so
+    /// that the sum is rounded up to whole bytes once.
+    pub m_q16: u64,
     /// Power of `G`.
     pub family: Family,
 }
 
 impl SizeModel {
-    /// Quantises fitted parameters (`m` is rounded up to whole bytes);
-    /// errors outside the documented range.
+    /// Quantises fitted parameters; errors outside the documented range.
     pub fn from_params(params: &Params) -> Result<SizeModel, ProfileError> {
         let c = Curve::Size;
         let k = Scale::from_f64(params.k, c, Field::K, MAX_SIZE_K)?;
         let (a, b) = offsets(params, c)?;
         check_range(params.m, c, Field::M, 0.0, MAX_SIZE_M)?;
-        // m in [0, 2^40]: exact after rounding up.
-        let m = Bytes(libm::ceil(params.m) as u64);
+        // m in [0, 2^40]: m·2^16 ≤ 2^56 is exact in u64 after rounding.
+        let m_q16 = libm::round(params.m * (1u64 << SIZE_FRAC) as f64) as u64;
         Ok(SizeModel {
             k,
             a,
             b,
-            m,
+            m_q16,
             family: params.family,
         })
     }
@@ -211,7 +214,7 @@ impl SizeModel {
             k: self.k.to_f64(),
             a: self.a.to_f64(),
             b: self.b.to_f64(),
-            m: self.m.0 as f64,
+            m: self.m_q16 as f64 / (1u64 << SIZE_FRAC) as f64,
             family: self.family,
         }
     }
@@ -221,26 +224,36 @@ impl SizeModel {
         let overflow = ProfileError::SizeOverflow { g, p };
         let x = volume_q32(g, p, self.a, self.b, self.family)?;
         // x < 2^84, mantissa < 2^32: no overflow.
-        let prod = x.checked_mul(u128::from(self.k.mantissa)).ok_or(overflow)?;
-        // k·x = prod · 2^(exponent − 32); round up.
-        let frac_bits = FRAC as i32 - i32::from(self.k.exponent);
-        let scaled = if frac_bits <= 0 {
-            let shift = frac_bits.unsigned_abs();
-            if prod != 0 && (shift >= 128 || prod.leading_zeros() < shift) {
-                return Err(overflow);
-            }
-            prod.checked_shl(shift).unwrap_or(0)
-        } else {
-            let shift = frac_bits.unsigned_abs();
-            let whole = prod.checked_shr(shift).unwrap_or(0);
-            let rest = match 1u128.checked_shl(shift) {
-                Some(one) => prod & one.wrapping_sub(1),
-                None => prod,
-            };
-            whole.saturating_add(u128::from(rest != 0))
+        let prod = x
+            .checked_mul(u128::from(self.k.mantissa))
+            .ok_or(overflow)?;
+        // k·X in Q16 = prod · 2^(exponent − 32 + 16), rounded up.
+        let shift = i32::from(self.k.exponent) - (FRAC - SIZE_FRAC) as i32;
+        let kx_q16 = shl_or_ceil_shr(prod, shift).ok_or(overflow)?;
+        let total_q16 = kx_q16
+            .checked_add(u128::from(self.m_q16))
+            .ok_or(overflow)?;
+        let ceil = total_q16.div_ceil(1 << SIZE_FRAC);
+        u64::try_from(ceil).map(Bytes).map_err(|_| overflow)
+    }
+}
+
+/// `v · 2^shift`: a left shift (`None` on overflow) or a right shift
+/// rounded up (so a size is never underestimated).
+fn shl_or_ceil_shr(v: u128, shift: i32) -> Option<u128> {
+    let s = shift.unsigned_abs();
+    if shift >= 0 {
+        if v != 0 && (s >= 128 || v.leading_zeros() < s) {
+            return None;
+        }
+        Some(v.checked_shl(s).unwrap_or(0))
+    } else {
+        let whole = v.checked_shr(s).unwrap_or(0);
+        let rest = match 1u128.checked_shl(s) {
+            Some(one) => v & one.wrapping_sub(1),
+            None => v,
         };
-        let total = scaled.checked_add(u128::from(self.m.0)).ok_or(overflow)?;
-        u64::try_from(total).map(Bytes).map_err(|_| overflow)
+        Some(whole.saturating_add(u128::from(rest != 0)))
     }
 }
 
@@ -595,7 +608,7 @@ mod tests {
             k: Scale::from_raw(u32::MAX, i16::MAX),
             a: Offset::from_raw(i64::MAX),
             b: Offset::from_raw(i64::MIN),
-            m: Bytes(u64::MAX),
+            m_q16: u64::MAX,
             family: Family::Volume,
         };
         assert!(wild.size(1, 1).is_err());
@@ -603,7 +616,7 @@ mod tests {
             k: Scale::from_raw(u32::MAX, i16::MAX),
             a: Offset::from_raw(0),
             b: Offset::from_raw(0),
-            m: Bytes(0),
+            m_q16: 0,
             family: Family::Volume,
         };
         assert_eq!(
@@ -612,13 +625,11 @@ mod tests {
         );
         let tiny = SizeModel {
             k: Scale::from_raw(u32::MAX, i16::MIN),
-            m: Bytes(u64::MAX),
+            m_q16: u64::MAX,
             ..huge
         };
-        assert_eq!(
-            tiny.size(2, 2),
-            Err(ProfileError::SizeOverflow { g: 2, p: 2 })
-        );
+        // (2^64 − 1)/2^16 bytes plus a vanishing k·X, rounded up.
+        assert_eq!(tiny.size(2, 2), Ok(Bytes(1 << 48)));
         for (mant, exp) in [
             (u32::MAX, i16::MAX),
             (u32::MAX, i16::MIN),
