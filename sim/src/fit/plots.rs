@@ -1,12 +1,12 @@
 //! Fitted curves over the measured points, one picture per object and curve.
 //!
 //! `<object>_ssim.png` and `<object>_size.png`: the quantity against g (log₂
-//! axis), one colour per p; dots are measurements, lines the fitted profile
+//! axis; size on a log₁₀ axis), one colour per p; dots are measurements, lines the fitted profile
 //! evaluated in fixed point (`nerflex_core::profiler`) on a dense g grid.
 
 use super::object::ObjectFit;
 use super::samples::Sample;
-use crate::plot::{Chart, LegendPosition, PlotError, Series, PALETTE};
+use crate::plot::{Chart, LegendPosition, PlotError, Scale, Series, PALETTE};
 use nerflex_core::profiler::Profile;
 use std::path::{Path, PathBuf};
 
