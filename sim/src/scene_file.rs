@@ -1,1 +1,654 @@
-//! (module under construction)
+//! The scene file (JSON): the objects to plan and, per object, its
+//! configurations — either a measured table or fitted profile parameters.
+//!
+//! Table form (exactly as issue 2 specifies; extra fields are allowed and
+//! ignored; `quality` is SSIM in `[0, 1]`; `size_bytes` a non-negative
+//! number of bytes, rounded up to a whole byte):
+//!
+//! ```json
+//! {"objects": [{"name": "lego", "configs": [
+//!     {"g": 128, "p": 17, "size_bytes": 104857600, "quality": 0.951}, …]}, …]}
+//! ```
+//!
+//! Profile form (an object has `profile` instead of `configs`): the white-box
+//! profiler's fitted parameters and the (g, p) values to evaluate:
+//!
+//! ```json
+//! {"name": "lego", "profile": {
+//!     "size":    {"k": 0.17, "a": 0.0, "b": 0.0, "m": 2.0e6},
+//!     "quality": {"k": 3.2e6, "a": 32.0, "b": 4.0, "m": 0.953},
+//!     "g": [32, 64, 128], "p": [5, 9, 17]}}
+//! ```
+//!
+//! with size `S(g,p) = k·(g+a)³·(p+b)² + m` in bytes (grows with g and p) and
+//! quality `Q(g,p) = m − k/((g+a)³·(p+b)²)` (saturates). Every (g, p) pair of
+//! the two lists becomes one configuration; sizes are rounded up to whole
+//! bytes, qualities clamped to `[0, 1]` (a fitted curve may overshoot). The
+//! evaluation is `f64` here for now; the profiler issue moves it to
+//! `nerflex_core::profiler` fixed point.
+//!
+//! An optional top-level `"single"` entry (same shape as an object; `name`
+//! optional, default `"single"`) gives the configurations of one network for
+//! the whole scene, used by the Single-NeRF baseline.
+//!
+//! Errors name the file and the field, e.g.
+//! `scene.json: objects[2].configs[5].size_bytes: negative value -3`.
+
+use nerflex_core::units::{Bytes, UnitError};
+use serde_json::{Map, Number, Value};
+use std::collections::HashMap;
+use std::fmt;
+use std::path::Path;
+
+/// Most configurations an object may have (the solver stores `u8` indices).
+pub const MAX_CONFIGS: usize = nerflex_core::mck::MAX_CONFIGS;
+
+/// A scene: the objects to plan.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    /// The objects, in file order (names are unique).
+    pub objects: Vec<SceneObject>,
+    /// Optional measured configurations of one network for the whole scene.
+    pub single: Option<SceneObject>,
+}
+
+/// One object and its configurations.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneObject {
+    /// Unique name.
+    pub name: String,
+    /// Configurations: the table, or the profile evaluated on its (g, p) grid.
+    pub configs: Vec<ConfigEntry>,
+    /// The profile the configurations were evaluated from, if any.
+    pub profile: Option<Profile>,
+}
+
+/// One configuration (g, p) of an object.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ConfigEntry {
+    /// Voxel grid resolution per axis.
+    pub g: u32,
+    /// Texel patch size per quad (p × p).
+    pub p: u32,
+    /// Size of the baked data.
+    pub size: Bytes,
+    /// Predicted or measured SSIM in `[0, 1]`.
+    pub quality: f64,
+}
+
+/// Fitted profile of one object (see the module docs for the formulas).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Profile {
+    /// Size model `S(g,p) = k·(g+a)³·(p+b)² + m` (bytes).
+    pub size: ModelParams,
+    /// Quality model `Q(g,p) = m − k/((g+a)³·(p+b)²)` (SSIM).
+    pub quality: ModelParams,
+    /// Grid resolutions to evaluate.
+    pub g: Vec<u32>,
+    /// Patch sizes to evaluate.
+    pub p: Vec<u32>,
+}
+
+/// The four parameters of one profile curve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ModelParams {
+    /// Scale.
+    pub k: f64,
+    /// Offset added to g.
+    pub a: f64,
+    /// Offset added to p.
+    pub b: f64,
+    /// Constant term (size) or asymptote (quality).
+    pub m: f64,
+}
+
+impl Profile {
+    /// Predicted size in bytes (not rounded): `k·(g+a)³·(p+b)² + m`.
+    pub fn size_at(&self, g: f64, p: f64) -> f64 {
+        let s = &self.size;
+        s.k * (g + s.a).powi(3) * (p + s.b).powi(2) + s.m
+    }
+
+    /// Predicted SSIM (not clamped): `m − k/((g+a)³·(p+b)²)`.
+    pub fn quality_at(&self, g: f64, p: f64) -> f64 {
+        let q = &self.quality;
+        q.m - q.k / ((g + q.a).powi(3) * (p + q.b).powi(2))
+    }
+
+    /// Partial derivatives (dS/dg, dS/dp) at (g, p).
+    pub fn size_gradient(&self, g: f64, p: f64) -> (f64, f64) {
+        let s = &self.size;
+        let (gg, pp) = (g + s.a, p + s.b);
+        (3.0 * s.k * gg * gg * pp * pp, 2.0 * s.k * gg.powi(3) * pp)
+    }
+
+    /// Partial derivatives (dQ/dg, dQ/dp) at (g, p).
+    pub fn quality_gradient(&self, g: f64, p: f64) -> (f64, f64) {
+        let q = &self.quality;
+        let (gg, pp) = (g + q.a, p + q.b);
+        let d = gg.powi(3) * pp * pp;
+        (3.0 * q.k / (d * gg), 2.0 * q.k / (d * pp))
+    }
+}
+
+/// A scene file problem: which file, which field, what is wrong.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SceneError {
+    /// The file (as given) or another origin label.
+    pub origin: String,
+    /// JSON path of the field, e.g. `objects[2].configs[5].size_bytes`
+    /// (empty for whole-file problems).
+    pub field: String,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.field.is_empty() {
+            write!(f, "{}: {}", self.origin, self.message)
+        } else {
+            write!(f, "{}: {}: {}", self.origin, self.field, self.message)
+        }
+    }
+}
+
+impl std::error::Error for SceneError {}
+
+/// Reads and validates a scene file.
+pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    let origin = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+        origin: origin.clone(),
+        field: String::new(),
+        message: format!("cannot read: {e}"),
+    })?;
+    parse(&text, &origin)
+}
+
+/// Parses and validates scene JSON; `origin` names it in errors.
+pub fn parse(text: &str, origin: &str) -> Result<Scene, SceneError> {
+    let value: Value = serde_json::from_str(text).map_err(|e| SceneError {
+        origin: origin.to_string(),
+        field: String::new(),
+        message: format!("invalid JSON: {e}"),
+    })?;
+    Parser { origin }.scene(&value)
+}
+
+impl Scene {
+    /// The scene as JSON in the file format (profile objects are written in
+    /// profile form, the others as tables).
+    pub fn to_json(&self) -> Value {
+        let mut root = Map::new();
+        root.insert(
+            "objects".into(),
+            Value::Array(self.objects.iter().map(SceneObject::to_json).collect()),
+        );
+        if let Some(single) = &self.single {
+            root.insert("single".into(), single.to_json());
+        }
+        Value::Object(root)
+    }
+}
+
+impl SceneObject {
+    fn to_json(&self) -> Value {
+        let mut obj = Map::new();
+        obj.insert("name".into(), Value::String(self.name.clone()));
+        match &self.profile {
+            Some(p) => {
+                let params =
+                    |m: &ModelParams| serde_json::json!({"k": m.k, "a": m.a, "b": m.b, "m": m.m});
+                obj.insert(
+                    "profile".into(),
+                    serde_json::json!({
+                        "size": params(&p.size),
+                        "quality": params(&p.quality),
+                        "g": p.g,
+                        "p": p.p,
+                    }),
+                );
+            }
+            None => {
+                let configs = self
+                    .configs
+                    .iter()
+                    .map(|c| {
+                        serde_json::json!({"g": c.g, "p": c.p, "size_bytes": c.size.0, "quality": c.quality})
+                    })
+                    .collect();
+                obj.insert("configs".into(), Value::Array(configs));
+            }
+        }
+        Value::Object(obj)
+    }
+}
+
+struct Parser<'o> {
+    origin: &'o str,
+}
+
+impl Parser<'_> {
+    fn err(&self, field: &str, message: impl Into<String>) -> SceneError {
+        SceneError {
+            origin: self.origin.to_string(),
+            field: field.to_string(),
+            message: message.into(),
+        }
+    }
+
+    fn scene(&self, v: &Value) -> Result<Scene, SceneError> {
+        let root = v
+            .as_object()
+            .ok_or_else(|| self.err("", "expected a JSON object with an \"objects\" list"))?;
+        let list = root
+            .get("objects")
+            .ok_or_else(|| self.err("objects", "missing"))?
+            .as_array()
+            .ok_or_else(|| self.err("objects", "expected a list of objects"))?;
+        if list.is_empty() {
+            return Err(self.err("objects", "empty list: a scene needs at least one object"));
+        }
+        let mut objects = Vec::with_capacity(list.len());
+        let mut seen: HashMap<String, usize> = HashMap::new();
+        for (i, item) in list.iter().enumerate() {
+            let path = format!("objects[{i}]");
+            let object = self.object(item, &path, None)?;
+            if let Some(first) = seen.insert(object.name.clone(), i) {
+                return Err(self.err(
+                    &format!("{path}.name"),
+                    format!("duplicate name {:?} (also objects[{first}])", object.name),
+                ));
+            }
+            objects.push(object);
+        }
+        let single = match root.get("single") {
+            None | Some(Value::Null) => None,
+            Some(s) => Some(self.object(s, "single", Some("single"))?),
+        };
+        Ok(Scene { objects, single })
+    }
+
+    fn object(
+        &self,
+        v: &Value,
+        path: &str,
+        default_name: Option<&str>,
+    ) -> Result<SceneObject, SceneError> {
+        let obj = v.as_object().ok_or_else(|| {
+            self.err(
+                path,
+                "expected an object with \"name\" and \"configs\" or \"profile\"",
+            )
+        })?;
+        let name = match (obj.get("name"), default_name) {
+            (None, Some(d)) => d.to_string(),
+            (None, None) => return Err(self.err(&format!("{path}.name"), "missing")),
+            (Some(Value::String(s)), _) if !s.trim().is_empty() => s.clone(),
+            (Some(Value::String(_)), _) => {
+                return Err(self.err(&format!("{path}.name"), "empty name"))
+            }
+            (Some(other), _) => {
+                return Err(self.err(
+                    &format!("{path}.name"),
+                    format!("expected a string, got {other}"),
+                ))
+            }
+        };
+        match (obj.get("configs"), obj.get("profile")) {
+            (Some(_), Some(_)) => Err(self.err(
+                path,
+                "has both \"configs\" and \"profile\"; give one of them",
+            )),
+            (None, None) => Err(self.err(path, "needs either \"configs\" or \"profile\"")),
+            (Some(c), None) => Ok(SceneObject {
+                name,
+                configs: self.table(c, &format!("{path}.configs"))?,
+                profile: None,
+            }),
+            (None, Some(p)) => {
+                let ppath = format!("{path}.profile");
+                let profile = self.profile(p, &ppath)?;
+                let configs = self.evaluate(&profile, &ppath)?;
+                Ok(SceneObject {
+                    name,
+                    configs,
+                    profile: Some(profile),
+                })
+            }
+        }
+    }
+
+    fn table(&self, v: &Value, path: &str) -> Result<Vec<ConfigEntry>, SceneError> {
+        let list = v
+            .as_array()
+            .ok_or_else(|| self.err(path, "expected a list of configurations"))?;
+        if list.is_empty() {
+            return Err(self.err(
+                path,
+                "empty list: an object needs at least one configuration",
+            ));
+        }
+        if list.len() > MAX_CONFIGS {
+            return Err(self.err(
+                path,
+                format!(
+                    "{} configurations; at most {MAX_CONFIGS} are supported",
+                    list.len()
+                ),
+            ));
+        }
+        let mut seen: HashMap<(u32, u32), usize> = HashMap::new();
+        let mut out = Vec::with_capacity(list.len());
+        for (j, item) in list.iter().enumerate() {
+            let cpath = format!("{path}[{j}]");
+            let c = item.as_object().ok_or_else(|| {
+                self.err(&cpath, "expected an object with g, p, size_bytes, quality")
+            })?;
+            let g = self.positive_int(c, &cpath, "g")?;
+            let p = self.positive_int(c, &cpath, "p")?;
+            let size = self.size_bytes(c, &cpath)?;
+            let quality = self.quality(c, &cpath)?;
+            if let Some(first) = seen.insert((g, p), j) {
+                return Err(self.err(
+                    &cpath,
+                    format!("duplicate configuration (g {g}, p {p}) (also {path}[{first}])"),
+                ));
+            }
+            out.push(ConfigEntry {
+                g,
+                p,
+                size,
+                quality,
+            });
+        }
+        Ok(out)
+    }
+
+    fn field<'v>(
+        &self,
+        obj: &'v Map<String, Value>,
+        path: &str,
+        key: &str,
+    ) -> Result<&'v Value, SceneError> {
+        obj.get(key)
+            .ok_or_else(|| self.err(&format!("{path}.{key}"), "missing"))
+    }
+
+    fn number(
+        &self,
+        obj: &Map<String, Value>,
+        path: &str,
+        key: &str,
+    ) -> Result<(f64, Number), SceneError> {
+        match self.field(obj, path, key)? {
+            Value::Number(n) => {
+                let x = n.as_f64().ok_or_else(|| {
+                    self.err(
+                        &format!("{path}.{key}"),
+                        format!("not a finite number ({n})"),
+                    )
+                })?;
+                if !x.is_finite() {
+                    return Err(self.err(
+                        &format!("{path}.{key}"),
+                        format!("not a finite number ({n})"),
+                    ));
+                }
+                Ok((x, n.clone()))
+            }
+            other => Err(self.err(
+                &format!("{path}.{key}"),
+                format!("expected a number, got {other}"),
+            )),
+        }
+    }
+
+    fn positive_int(
+        &self,
+        obj: &Map<String, Value>,
+        path: &str,
+        key: &str,
+    ) -> Result<u32, SceneError> {
+        let (x, n) = self.number(obj, path, key)?;
+        let fpath = format!("{path}.{key}");
+        if x < 0.0 {
+            return Err(self.err(&fpath, format!("negative value {n}")));
+        }
+        match n.as_u64().and_then(|v| u32::try_from(v).ok()) {
+            Some(v) if v > 0 => Ok(v),
+            _ => Err(self.err(&fpath, format!("must be a positive integer, got {n}"))),
+        }
+    }
+
+    fn size_bytes(&self, obj: &Map<String, Value>, path: &str) -> Result<Bytes, SceneError> {
+        let (x, n) = self.number(obj, path, "size_bytes")?;
+        let fpath = format!("{path}.size_bytes");
+        if let Some(v) = n.as_u64() {
+            return Ok(Bytes(v));
+        }
+        Bytes::from_f64_ceil(x).map_err(|e| match e {
+            UnitError::Negative(_) => self.err(&fpath, format!("negative value {n}")),
+            other => self.err(&fpath, other.to_string()),
+        })
+    }
+
+    fn quality(&self, obj: &Map<String, Value>, path: &str) -> Result<f64, SceneError> {
+        let (x, n) = self.number(obj, path, "quality")?;
+        let fpath = format!("{path}.quality");
+        if x < 0.0 {
+            return Err(self.err(
+                &fpath,
+                format!("negative value {n}; SSIM must be in [0, 1]"),
+            ));
+        }
+        if x > 1.0 {
+            return Err(self.err(&fpath, format!("value {n} above 1; SSIM must be in [0, 1]")));
+        }
+        Ok(x)
+    }
+
+    fn profile(&self, v: &Value, path: &str) -> Result<Profile, SceneError> {
+        let obj = v
+            .as_object()
+            .ok_or_else(|| self.err(path, "expected an object with size, quality, g, p"))?;
+        let params = |key: &str| -> Result<ModelParams, SceneError> {
+            let mpath = format!("{path}.{key}");
+            let m = self
+                .field(obj, path, key)?
+                .as_object()
+                .ok_or_else(|| self.err(&mpath, "expected an object with k, a, b, m"))?;
+            Ok(ModelParams {
+                k: self.number(m, &mpath, "k")?.0,
+                a: self.number(m, &mpath, "a")?.0,
+                b: self.number(m, &mpath, "b")?.0,
+                m: self.number(m, &mpath, "m")?.0,
+            })
+        };
+        let size = params("size")?;
+        let quality = params("quality")?;
+        let list = |key: &str| -> Result<Vec<u32>, SceneError> {
+            let lpath = format!("{path}.{key}");
+            let arr = self
+                .field(obj, path, key)?
+                .as_array()
+                .ok_or_else(|| self.err(&lpath, "expected a list of positive integers"))?;
+            if arr.is_empty() {
+                return Err(self.err(&lpath, "empty list"));
+            }
+            let mut out = Vec::with_capacity(arr.len());
+            for (i, item) in arr.iter().enumerate() {
+                let ipath = format!("{lpath}[{i}]");
+                let v = item
+                    .as_u64()
+                    .and_then(|v| u32::try_from(v).ok())
+                    .filter(|&v| v > 0)
+                    .ok_or_else(|| {
+                        self.err(&ipath, format!("must be a positive integer, got {item}"))
+                    })?;
+                if out.contains(&v) {
+                    return Err(self.err(&ipath, format!("duplicate value {v}")));
+                }
+                out.push(v);
+            }
+            Ok(out)
+        };
+        let g = list("g")?;
+        let p = list("p")?;
+        if g.len() * p.len() > MAX_CONFIGS {
+            return Err(self.err(
+                path,
+                format!(
+                    "{} × {} = {} configurations; at most {MAX_CONFIGS} are supported",
+                    g.len(),
+                    p.len(),
+                    g.len() * p.len()
+                ),
+            ));
+        }
+        Ok(Profile {
+            size,
+            quality,
+            g,
+            p,
+        })
+    }
+
+    fn evaluate(&self, profile: &Profile, path: &str) -> Result<Vec<ConfigEntry>, SceneError> {
+        let mut out = Vec::with_capacity(profile.g.len() * profile.p.len());
+        for &g in &profile.g {
+            for &p in &profile.p {
+                let s = profile.size_at(g as f64, p as f64);
+                let size = Bytes::from_f64_ceil(s).map_err(|e| {
+                    self.err(
+                        &format!("{path}.size"),
+                        format!("predicted size at (g {g}, p {p}) is invalid: {e}"),
+                    )
+                })?;
+                let q = profile.quality_at(g as f64, p as f64);
+                if !q.is_finite() {
+                    return Err(self.err(
+                        &format!("{path}.quality"),
+                        format!("predicted quality at (g {g}, p {p}) is not finite ({q})"),
+                    ));
+                }
+                out.push(ConfigEntry {
+                    g,
+                    p,
+                    size,
+                    quality: q.clamp(0.0, 1.0),
+                });
+            }
+        }
+        Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn err(text: &str) -> String {
+        parse(text, "scene.json").unwrap_err().to_string()
+    }
+
+    #[test]
+    fn table_form() {
+        let s = parse(
+            r#"{"objects": [{"name": "lego", "note": "extra", "configs": [
+                {"g": 128, "p": 17, "size_bytes": 104857600, "quality": 0.951, "psnr": 30.1},
+                {"g": 64, "p": 9, "size_bytes": 1.5e7, "quality": 0.9}]}]}"#,
+            "scene.json",
+        )
+        .unwrap();
+        assert_eq!(s.objects.len(), 1);
+        assert_eq!(s.objects[0].configs[0].size, Bytes(104_857_600));
+        assert_eq!(s.objects[0].configs[1].size, Bytes(15_000_000));
+        assert_eq!(s.objects[0].configs[0].quality, 0.951);
+        assert!(s.single.is_none());
+        // Round trip.
+        let again = parse(&s.to_json().to_string(), "x").unwrap();
+        assert_eq!(again, s);
+    }
+
+    #[test]
+    fn errors_name_file_and_field() {
+        let base = |cfg: &str| format!(r#"{{"objects": [{{"name": "a", "configs": [{cfg}]}}]}}"#);
+        assert_eq!(
+            err(&base(
+                r#"{"g": 1, "p": 1, "size_bytes": -3, "quality": 0.5}"#
+            )),
+            "scene.json: objects[0].configs[0].size_bytes: negative value -3"
+        );
+        assert_eq!(
+            err(&base(
+                r#"{"g": 1, "p": 1, "size_bytes": 3, "quality": 1.5}"#
+            )),
+            "scene.json: objects[0].configs[0].quality: value 1.5 above 1; SSIM must be in [0, 1]"
+        );
+        assert_eq!(
+            err(&base(
+                r#"{"g": 1.5, "p": 1, "size_bytes": 3, "quality": 0.5}"#
+            )),
+            "scene.json: objects[0].configs[0].g: must be a positive integer, got 1.5"
+        );
+        assert_eq!(
+            err(&base(r#"{"g": 1, "p": 1, "quality": 0.5}"#)),
+            "scene.json: objects[0].configs[0].size_bytes: missing"
+        );
+        assert_eq!(
+            err(&base("")),
+            "scene.json: objects[0].configs: empty list: an object needs at least one configuration"
+        );
+        assert_eq!(
+            err(r#"{"objects": []}"#),
+            "scene.json: objects: empty list: a scene needs at least one object"
+        );
+        let dup = r#"{"objects": [{"name": "a", "configs": [{"g": 1, "p": 1, "size_bytes": 1, "quality": 0.5}]},
+                                   {"name": "a", "configs": [{"g": 1, "p": 1, "size_bytes": 1, "quality": 0.5}]}]}"#;
+        assert_eq!(
+            err(dup),
+            "scene.json: objects[1].name: duplicate name \"a\" (also objects[0])"
+        );
+        assert!(err("{").starts_with("scene.json: invalid JSON: "));
+        assert!(err("[1]").starts_with("scene.json: expected a JSON object"));
+        assert_eq!(
+            err(r#"{"objects": [{"name": "a"}]}"#),
+            "scene.json: objects[0]: needs either \"configs\" or \"profile\""
+        );
+        assert!(err("{\"objects\": [{\"name\": \"a\", \"configs\": [{\"g\": 1, \"p\": 1, \"size_bytes\": 1e999, \"quality\": 0.5}]}]}")
+            .starts_with("scene.json: invalid JSON"));
+    }
+
+    #[test]
+    fn profile_form_is_evaluated_on_its_grid() {
+        let s = parse(
+            r#"{"objects": [{"name": "lego", "profile": {
+                "size": {"k": 0.5, "a": 0, "b": 0, "m": 1000},
+                "quality": {"k": 100, "a": 0, "b": 0, "m": 0.95},
+                "g": [2, 4], "p": [1, 3]}}]}"#,
+            "scene.json",
+        )
+        .unwrap();
+        let c = &s.objects[0].configs;
+        assert_eq!(c.len(), 4);
+        // S(2,1) = 0.5·8·1 + 1000 = 1004; Q(2,1) = 0.95 − 100/8 < 0 → 0.
+        assert_eq!(
+            (c[0].g, c[0].p, c[0].size, c[0].quality),
+            (2, 1, Bytes(1004), 0.0)
+        );
+        // S(4,3) = 0.5·64·9 + 1000 = 1288; Q = 0.95 − 100/576.
+        assert_eq!(c[3].size, Bytes(1288));
+        assert!((c[3].quality - (0.95 - 100.0 / 576.0)).abs() < 1e-12);
+        let again = parse(&s.to_json().to_string(), "x").unwrap();
+        assert_eq!(again, s);
+        let bad = r#"{"objects": [{"name": "lego", "profile": {
+                "size": {"k": -0.5, "a": 0, "b": 0, "m": 0},
+                "quality": {"k": 1, "a": 0, "b": 0, "m": 0.95}, "g": [2], "p": [1]}}]}"#;
+        assert_eq!(
+            err(bad),
+            "scene.json: objects[0].profile.size: predicted size at (g 2, p 1) is invalid: negative value -4"
+        );
+    }
+}

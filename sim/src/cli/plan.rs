@@ -1,10 +1,146 @@
-//! `nerflex plan` (under construction).
+//! `nerflex plan`: choose one (g, p) configuration per object under a
+//! device's memory budget, and print the plan as a table or JSON.
+//!
+//! Infeasible plans exit non-zero with the error text (for `block` and
+//! `single`, which always have a plan, after printing it with
+//! `"feasible": false`).
+
+use crate::baselines::{self, Budget, Method, Plan};
+use crate::device::Device;
+use crate::scene_file;
+use anyhow::{bail, Context};
+use nerflex_core::units::Bytes;
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::PathBuf;
 
 /// Flags of `nerflex plan`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Scene file (JSON): objects with a configuration table or a profile.
+    #[arg(long, value_name = "FILE")]
+    pub scene: PathBuf,
+    /// Device: a built-in name (iphone13, pixel4) or a device TOML file.
+    #[arg(long, value_name = "NAME|FILE")]
+    pub device: String,
+    /// Selection method.
+    #[arg(long, value_enum, default_value_t = Method::Dp)]
+    pub method: Method,
+    /// Memory budget in MB (10^6 bytes), instead of the device's.
+    #[arg(long, value_name = "X", allow_negative_numbers = true)]
+    pub budget_mb: Option<f64>,
+    /// Planning unit in bytes: sizes are rounded up to it, the budget down
+    /// [default: 0.1 MB, finer under 100 MB, coarser over 6.5 GB].
+    #[arg(long, value_name = "N")]
+    pub unit_bytes: Option<u64>,
+    /// Print the plan as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
 
 /// Runs `nerflex plan`.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`nerflex plan` is not implemented yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let scene = scene_file::load(&args.scene)?;
+    let device = Device::lookup(&args.device)?;
+    let total = match args.budget_mb {
+        None => device.budget(),
+        Some(mb) => Bytes::from_mb(mb).map_err(|e| {
+            anyhow::anyhow!("--budget-mb: must be a non-negative number of MB: {e}")
+        })?,
+    };
+    let budget = match args.unit_bytes {
+        None => Budget::new(total),
+        Some(0) => bail!("--unit-bytes: must be at least 1"),
+        Some(u) => Budget::with_unit(total, Bytes(u)),
+    };
+    let mut plan = baselines::plan(args.method, &scene, budget)
+        .with_context(|| format!("{} plan for {}", args.method, args.scene.display()))?;
+    plan.device = Some(device.name.clone());
+    let text = if args.json {
+        let mut s = serde_json::to_string_pretty(&plan)?;
+        s.push('\n');
+        s
+    } else {
+        table(&plan, budget)
+    };
+    std::io::stdout()
+        .lock()
+        .write_all(text.as_bytes())
+        .context("writing the plan to stdout")?;
+    if !plan.feasible {
+        bail!(
+            "{} plan is infeasible: it needs {:.2} MB ({} bytes), over the budget of {:.2} MB ({} bytes)",
+            plan.method,
+            Bytes(plan.total_size_bytes).as_mb(),
+            plan.total_size_bytes,
+            Bytes(plan.budget_bytes).as_mb(),
+            plan.budget_bytes
+        );
+    }
+    Ok(())
+}
+
+/// The plan as a human-readable table.
+pub fn table(plan: &Plan, budget: Budget) -> String {
+    let mut s = String::new();
+    let device = plan.device.as_deref().unwrap_or("-");
+    let _ = writeln!(
+        s,
+        "{} plan on {}: budget {:.2} MB, planned in units of {} bytes ({} units)",
+        plan.method,
+        device,
+        budget.total.as_mb(),
+        budget.unit.0,
+        budget.units()
+    );
+    let width = plan
+        .objects
+        .iter()
+        .map(|o| o.name.chars().count())
+        .max()
+        .unwrap_or(0)
+        .max("object".len());
+    let _ = writeln!(
+        s,
+        "{:<width$}  {:>5}  {:>4}  {:>10}  {:>7}",
+        "object", "g", "p", "size MB", "SSIM"
+    );
+    for o in &plan.objects {
+        let _ = writeln!(
+            s,
+            "{:<width$}  {:>5}  {:>4}  {:>10.2}  {:>7.4}",
+            o.name,
+            o.g,
+            o.p,
+            Bytes(o.size_bytes).as_mb(),
+            o.quality
+        );
+    }
+    let _ = writeln!(
+        s,
+        "{:<width$}  {:>5}  {:>4}  {:>10.2}  {:>7.4}",
+        "total",
+        "",
+        "",
+        Bytes(plan.total_size_bytes).as_mb(),
+        plan.total_quality
+    );
+    let used = if plan.budget_bytes == 0 {
+        if plan.total_size_bytes == 0 {
+            0.0
+        } else {
+            f64::INFINITY
+        }
+    } else {
+        100.0 * plan.total_size_bytes as f64 / plan.budget_bytes as f64
+    };
+    let _ = writeln!(
+        s,
+        "budget used: {:.1} % ({:.2} of {:.2} MB){}",
+        used,
+        Bytes(plan.total_size_bytes).as_mb(),
+        Bytes(plan.budget_bytes).as_mb(),
+        if plan.feasible { "" } else { ": OVER BUDGET" }
+    );
+    s
 }

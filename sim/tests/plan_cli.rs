@@ -1,0 +1,229 @@
+//! `nerflex plan` end to end: flags, table and JSON output, exit codes.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn nerflex(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_nerflex"))
+        .current_dir(root())
+        .args(args)
+        .output()
+        .expect("run nerflex")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+const SCENE: &str = "examples/scenes/five_objects.json";
+
+#[test]
+fn json_for_every_method() {
+    for method in [
+        "dp", "fairness", "slsqp", "greedy", "block", "single", "brute",
+    ] {
+        let out = nerflex(&[
+            "plan", "--scene", SCENE, "--device", "iphone13", "--method", method, "--json",
+        ]);
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout)
+            .unwrap_or_else(|e| panic!("{method}: {e}: {}", text(&out.stdout)));
+        assert_eq!(v["method"], method);
+        assert_eq!(v["device"], "iphone13");
+        assert_eq!(v["budget_bytes"], 240_000_000u64);
+        let feasible = v["feasible"].as_bool().unwrap();
+        let total: u64 = v["objects"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|o| o["size_bytes"].as_u64().unwrap())
+            .sum();
+        assert_eq!(v["total_size_bytes"].as_u64(), Some(total));
+        // Infeasible plans (Block-NeRF here) exit non-zero with the reason.
+        assert_eq!(
+            out.status.success(),
+            feasible,
+            "{method}: {}",
+            text(&out.stderr)
+        );
+        if feasible {
+            assert!(total <= 240_000_000);
+        } else {
+            assert_eq!(method, "block");
+            assert!(
+                text(&out.stderr).contains("block plan is infeasible: it needs 337.86 MB"),
+                "{}",
+                text(&out.stderr)
+            );
+        }
+    }
+}
+
+#[test]
+fn table_output() {
+    let out = nerflex(&["plan", "--scene", SCENE, "--device", "pixel4"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let t = text(&out.stdout);
+    assert!(t.starts_with("dp plan on pixel4: budget 150.00 MB"), "{t}");
+    assert!(t.contains("object"), "{t}");
+    assert!(t.contains("size MB") && t.contains("SSIM"), "{t}");
+    for name in ["lego", "chair", "drums", "ficus", "hotdog", "total"] {
+        assert!(
+            t.lines().any(|l| l.starts_with(name)),
+            "{name} missing: {t}"
+        );
+    }
+    assert!(
+        t.lines().last().unwrap().starts_with("budget used: "),
+        "{t}"
+    );
+}
+
+#[test]
+fn budget_override_and_infeasible_budget() {
+    let out = nerflex(&[
+        "plan",
+        "--scene",
+        SCENE,
+        "--device",
+        "iphone13",
+        "--budget-mb",
+        "100",
+        "--json",
+    ]);
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["budget_bytes"], 100_000_000u64);
+    assert!(v["total_size_bytes"].as_u64().unwrap() <= 100_000_000);
+
+    let out = nerflex(&[
+        "plan",
+        "--scene",
+        SCENE,
+        "--device",
+        "iphone13",
+        "--budget-mb",
+        "5",
+    ]);
+    assert!(!out.status.success());
+    assert!(out.stdout.is_empty());
+    let e = text(&out.stderr);
+    assert!(e.contains("infeasible: the cheapest plan needs 7.95 MB (7946528 bytes), over the budget of 5.00 MB"), "{e}");
+}
+
+#[test]
+fn bad_input_is_a_clear_error() {
+    let cases: &[(&[&str], &str)] = &[
+        (
+            &["--budget-mb", "-3"],
+            "--budget-mb: must be a non-negative number of MB: negative value -3",
+        ),
+        (&["--budget-mb", "nan"], "--budget-mb"),
+        (&["--unit-bytes", "0"], "--unit-bytes: must be at least 1"),
+    ];
+    for (extra, expect) in cases {
+        let mut args = vec!["plan", "--scene", SCENE, "--device", "iphone13"];
+        args.extend_from_slice(extra);
+        let out = nerflex(&args);
+        assert!(!out.status.success(), "{extra:?}");
+        assert!(
+            text(&out.stderr).contains(expect),
+            "{extra:?}: {}",
+            text(&out.stderr)
+        );
+    }
+    {
+        let args = ["plan", "--scene", SCENE, "--device", "nokia3310"];
+        let expect = "nokia3310: not a built-in device (iphone13, pixel4) and no such file";
+        let out = nerflex(&args);
+        assert!(!out.status.success(), "{args:?}");
+        assert!(
+            text(&out.stderr).contains(expect),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+    }
+
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("scene.json");
+    std::fs::write(&bad, r#"{"objects": [{"name": "a", "configs": [{"g": 1, "p": 1, "size_bytes": -3, "quality": 0.5}]}]}"#).unwrap();
+    let out = nerflex(&[
+        "plan",
+        "--scene",
+        bad.to_str().unwrap(),
+        "--device",
+        "iphone13",
+    ]);
+    assert!(!out.status.success());
+    let e = text(&out.stderr);
+    assert!(
+        e.contains("scene.json: objects[0].configs[0].size_bytes: negative value -3"),
+        "{e}"
+    );
+
+    let out = nerflex(&[
+        "plan",
+        "--scene",
+        "does/not/exist.json",
+        "--device",
+        "iphone13",
+    ]);
+    assert!(!out.status.success());
+    assert!(
+        text(&out.stderr).contains("does/not/exist.json: cannot read"),
+        "{}",
+        text(&out.stderr)
+    );
+
+    let out = nerflex(&[
+        "plan", "--scene", SCENE, "--device", "iphone13", "--method", "magic",
+    ]);
+    assert!(!out.status.success());
+    assert!(
+        text(&out.stderr).contains("invalid value 'magic'"),
+        "{}",
+        text(&out.stderr)
+    );
+}
+
+#[test]
+fn device_from_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("tiny.toml");
+    let pixel = std::fs::read_to_string(root().join("sim/devices/pixel4.toml")).unwrap();
+    std::fs::write(
+        &path,
+        pixel
+            .replace("name = \"pixel4\"", "name = \"tiny\"")
+            .replace("budget_mb = 150.0", "budget_mb = 60.0"),
+    )
+    .unwrap();
+    let out = nerflex(&[
+        "plan",
+        "--scene",
+        SCENE,
+        "--device",
+        path.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["device"], "tiny");
+    assert_eq!(v["budget_bytes"], 60_000_000u64);
+
+    std::fs::write(
+        &path,
+        pixel.replace("refresh_hz = 90.0", "refresh_hz = 90.0\nbrightness = 3"),
+    )
+    .unwrap();
+    let out = nerflex(&["plan", "--scene", SCENE, "--device", path.to_str().unwrap()]);
+    assert!(!out.status.success());
+    let e = text(&out.stderr);
+    assert!(
+        e.contains("tiny.toml: display.brightness: unknown field `brightness`"),
+        "{e}"
+    );
+}
