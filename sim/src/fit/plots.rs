@@ -54,8 +54,9 @@ pub fn draw(fit: &ObjectFit, samples: &[&Sample], dir: &Path) -> Result<Vec<Path
         fit.name
     ))
     .x_label("grid g (voxels per axis)")
-    .y_label("size (MB)")
+    .y_label("size (MB, log scale)")
     .x_log2()
+    .y_scale(Scale::Log10)
     .legend(LegendPosition::TopLeft);
     for (i, &p) in patches.iter().enumerate() {
         let color = PALETTE[i % PALETTE.len()];
