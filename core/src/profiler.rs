@@ -25,11 +25,12 @@
 //! offsets `a`, `b` as signed Q31.32 ([`Offset`]), the scale `k` as a 32-bit
 //! mantissa with a binary exponent ([`Scale`], because fitted `k` spans
 //! twenty orders of magnitude between families and units), the size constant
-//! `m` in whole bytes (rounded up) and the quality asymptote `m` as signed
-//! Q31 (`i64`). Evaluation is integer only (`u128` intermediates, no float,
+//! `m` in bytes as Q16 (so the sum is rounded once) and the quality asymptote
+//! `m` as signed Q31 (`i64`). Evaluation is integer only (`u128` intermediates, no float,
 //! no heap, no panic): `G^e·P²` is formed in Q32 with a truncation after each
 //! product, sizes are rounded **up** to whole bytes (a size must never be
-//! underestimated) and qualities rounded to nearest [`QualityQ`] and clamped
+//! underestimated) and qualities rounded to nearest
+//! [`QualityQ`](crate::units::QualityQ) and clamped
 //! to `[0, 1]`.
 //!
 //! # Documented range
@@ -44,6 +45,7 @@
 //! | patch `p` | `1..=64` ([`MAX_P`]) |
 //! | `G = g + a` | `[0.5, 4096]` ([`MIN_BASE`], [`MAX_G_BASE`]) |
 //! | `P = p + b` | `[0.5, 256]` ([`MIN_BASE`], [`MAX_P_BASE`]) |
+//! | `a`, `b` | `[−1024, 4096]`, `[−64, 256]` (so `G`, `P` can be in range) |
 //! | size `k` | `[0, 2^10]` bytes per unit of `G^e·P²` ([`MAX_SIZE_K`]) |
 //! | size `m` | `[0, 2^40]` bytes ([`MAX_SIZE_M`]) |
 //! | quality `k` | `[0, 2^60]` ([`MAX_QUALITY_K`]) |

@@ -53,7 +53,15 @@ fn bench_fit(c: &mut Criterion) {
     let cases = [
         (
             "sweep_5x4",
-            synthetic::samples("o", &s, &q, &[16, 32, 64, 128, 256], &[5, 9, 13, 17], noise, 1),
+            synthetic::samples(
+                "o",
+                &s,
+                &q,
+                &[16, 32, 64, 128, 256],
+                &[5, 9, 13, 17],
+                noise,
+                1,
+            ),
         ),
         (
             "paper_plan_4x3",

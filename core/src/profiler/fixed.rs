@@ -224,15 +224,11 @@ impl SizeModel {
         let overflow = ProfileError::SizeOverflow { g, p };
         let x = volume_q32(g, p, self.a, self.b, self.family)?;
         // x < 2^84, mantissa < 2^32: no overflow.
-        let prod = x
-            .checked_mul(u128::from(self.k.mantissa))
-            .ok_or(overflow)?;
+        let prod = x.checked_mul(u128::from(self.k.mantissa)).ok_or(overflow)?;
         // k·X in Q16 = prod · 2^(exponent − 32 + 16), rounded up.
         let shift = i32::from(self.k.exponent) - (FRAC - SIZE_FRAC) as i32;
         let kx_q16 = shl_or_ceil_shr(prod, shift).ok_or(overflow)?;
-        let total_q16 = kx_q16
-            .checked_add(u128::from(self.m_q16))
-            .ok_or(overflow)?;
+        let total_q16 = kx_q16.checked_add(u128::from(self.m_q16)).ok_or(overflow)?;
         let ceil = total_q16.div_ceil(1 << SIZE_FRAC);
         u64::try_from(ceil).map(Bytes).map_err(|_| overflow)
     }
