@@ -316,8 +316,14 @@ fn accuracy_command_prints_table_and_draws() {
         objects: vec![],
         family: FamilyChoice::Auto,
         plots: Some(plots.clone()),
+        json: Some(dir.path().join("acc.json")),
     })
     .unwrap();
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("acc.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["points"].as_array().unwrap().len(), 60);
+    assert_eq!(json["paper"]["ssim"]["mean"], 0.0065);
     assert!(text.contains("NeRFlex paper"), "{text}");
     assert!(text.contains("0.0065 ± 0.0088"), "{text}");
     for name in ["alpha_ssim.png", "alpha_size.png", "gamma___q__size.png"] {

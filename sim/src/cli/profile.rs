@@ -95,6 +95,9 @@ pub struct AccuracyArgs {
     /// Write `<object>_ssim.png` and `<object>_size.png` here.
     #[arg(long, value_name = "DIR")]
     pub plots: Option<PathBuf>,
+    /// Also write the summaries and every left-out point as JSON here.
+    #[arg(long, value_name = "FILE.json")]
+    pub json: Option<PathBuf>,
 }
 
 /// Runs `nerflex profile`.
@@ -261,6 +264,12 @@ pub fn accuracy_report(args: &AccuracyArgs) -> anyhow::Result<String> {
         "\n{fits} fits (leave-one-out and full) in {:.3} s",
         elapsed.as_secs_f64()
     );
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&accuracy::to_json(&acc))? + "\n";
+        fit::write_atomic(path, text.as_bytes())
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        let _ = writeln!(out, "wrote {}", path.display());
+    }
     if let Some(dir) = &args.plots {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         for o in &acc.objects {

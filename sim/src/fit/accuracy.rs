@@ -267,6 +267,31 @@ pub fn table(acc: &Accuracy) -> String {
     out
 }
 
+/// The accuracy as JSON: summaries (ours and the paper's) and every
+/// left-out point.
+pub fn to_json(acc: &Accuracy) -> serde_json::Value {
+    use serde_json::json;
+    let stats = |s: &Stats| json!({"mean": s.mean, "sd": s.sd, "n": s.n});
+    let summary = |e: &ErrorSummary| json!({"ssim": stats(&e.ssim), "size_mb": stats(&e.size_mb), "size_rel": stats(&e.size_rel)});
+    json!({
+        "all": summary(&acc.all),
+        "paper": {"ssim": stats(&PAPER_SSIM), "size_mb": stats(&PAPER_SIZE_MB)},
+        "objects": acc.objects.iter().map(|o| json!({
+            "name": o.fit.name,
+            "errors": summary(&o.errors),
+            "size_family": o.fit.size.best.params.family.name(),
+            "quality_family": o.fit.quality.best.params.family.name(),
+        })).collect::<Vec<_>>(),
+        "points": acc.points.iter().map(|p| json!({
+            "object": p.object, "g": p.g, "p": p.p,
+            "size_measured_bytes": p.size_measured.0,
+            "size_predicted_bytes": p.size_predicted.0,
+            "ssim_measured": p.ssim_measured,
+            "ssim_predicted": p.ssim_predicted,
+        })).collect::<Vec<_>>(),
+    })
+}
+
 /// In-sample residuals of the full fits (RMSE), one line per object.
 pub fn fit_table(acc: &Accuracy) -> String {
     let mut out = String::new();
