@@ -11,21 +11,26 @@
 //! ```
 //!
 //! Profile form (an object has `profile` instead of `configs`): the white-box
-//! profiler's fitted parameters and the (g, p) values to evaluate:
+//! profiler's fitted parameters and the (g, p) values to evaluate, as
+//! `nerflex profile fit` writes them:
 //!
 //! ```json
 //! {"name": "lego", "profile": {
-//!     "size":    {"k": 0.17, "a": 0.0, "b": 0.0, "m": 2.0e6},
+//!     "size":    {"k": 0.17, "a": 0.0, "b": 0.0, "m": 2.0e6, "g_power": 3},
 //!     "quality": {"k": 3.2e6, "a": 32.0, "b": 4.0, "m": 0.953},
 //!     "g": [32, 64, 128], "p": [5, 9, 17]}}
 //! ```
 //!
-//! with size `S(g,p) = k·(g+a)³·(p+b)² + m` in bytes (grows with g and p) and
-//! quality `Q(g,p) = m − k/((g+a)³·(p+b)²)` (saturates). Every (g, p) pair of
-//! the two lists becomes one configuration; sizes are rounded up to whole
-//! bytes, qualities clamped to `[0, 1]` (a fitted curve may overshoot). The
-//! evaluation is `f64` here for now; the profiler issue moves it to
-//! `nerflex_core::profiler` fixed point.
+//! with size `S(g,p) = k·(g+a)^e·(p+b)² + m` in bytes (grows with g and p) and
+//! quality `Q(g,p) = m − k/((g+a)^e·(p+b)²)` (saturates), where `e` is the
+//! optional `g_power`: 3 (the NeRFlex paper's voxel count, the default) or 2
+//! (surface-like growth). Every (g, p) pair of the two lists becomes one
+//! configuration, evaluated by the fixed-point `nerflex_core::profiler`
+//! exactly as on the device: sizes rounded up to whole bytes, qualities to
+//! Q1.31 and clamped to `[0, 1]` (a fitted curve may overshoot). Parameters
+//! and (g, p) must lie in that module's documented range (e.g. `k ≥ 0`,
+//! `g + a ≥ 0.5`); anything else is an error naming the field. Extra fields
+//! (such as the fit's `"fit"` diagnostics) are ignored.
 //!
 //! An optional top-level `"single"` entry (same shape as an object; `name`
 //! optional, default `"single"`) gives the configurations of one network for
@@ -34,6 +39,7 @@
 //! Errors name the file and the field, e.g.
 //! `scene.json: objects[2].configs[5].size_bytes: negative value -3`.
 
+use nerflex_core::profiler::{Family, ProfileError};
 use nerflex_core::units::{Bytes, UnitError};
 use serde_json::{Map, Number, Value};
 use std::collections::HashMap;
@@ -89,45 +95,42 @@ pub struct Profile {
     pub p: Vec<u32>,
 }
 
-/// The four parameters of one profile curve.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ModelParams {
-    /// Scale.
-    pub k: f64,
-    /// Offset added to g.
-    pub a: f64,
-    /// Offset added to p.
-    pub b: f64,
-    /// Constant term (size) or asymptote (quality).
-    pub m: f64,
-}
+/// The parameters of one profile curve: `k`, `a`, `b`, `m` and the family
+/// (the power of `g + a`), shared with `nerflex_core::profiler`.
+pub type ModelParams = nerflex_core::profiler::Params;
 
 impl Profile {
-    /// Predicted size in bytes (not rounded): `k·(g+a)³·(p+b)² + m`.
+    /// Predicted size in bytes, `f64` (not rounded): `k·(g+a)^e·(p+b)² + m`.
     pub fn size_at(&self, g: f64, p: f64) -> f64 {
-        let s = &self.size;
-        s.k * (g + s.a).powi(3) * (p + s.b).powi(2) + s.m
+        self.size.size_f64(g, p)
     }
 
-    /// Predicted SSIM (not clamped): `m − k/((g+a)³·(p+b)²)`.
+    /// Predicted SSIM, `f64` (not clamped): `m − k/((g+a)^e·(p+b)²)`.
     pub fn quality_at(&self, g: f64, p: f64) -> f64 {
-        let q = &self.quality;
-        q.m - q.k / ((g + q.a).powi(3) * (p + q.b).powi(2))
+        self.quality.quality_f64(g, p)
     }
 
     /// Partial derivatives (dS/dg, dS/dp) at (g, p).
     pub fn size_gradient(&self, g: f64, p: f64) -> (f64, f64) {
         let s = &self.size;
         let (gg, pp) = (g + s.a, p + s.b);
-        (3.0 * s.k * gg * gg * pp * pp, 2.0 * s.k * gg.powi(3) * pp)
+        let x = s.volume_f64(g, p);
+        let e = f64::from(s.family.g_power());
+        (e * s.k * x / gg, 2.0 * s.k * x / pp)
     }
 
     /// Partial derivatives (dQ/dg, dQ/dp) at (g, p).
     pub fn quality_gradient(&self, g: f64, p: f64) -> (f64, f64) {
         let q = &self.quality;
         let (gg, pp) = (g + q.a, p + q.b);
-        let d = gg.powi(3) * pp * pp;
-        (3.0 * q.k / (d * gg), 2.0 * q.k / (d * pp))
+        let x = q.volume_f64(g, p);
+        let e = f64::from(q.family.g_power());
+        (e * q.k / (x * gg), 2.0 * q.k / (x * pp))
+    }
+
+    /// The profile in fixed point (`nerflex_core::profiler`).
+    pub fn fixed(&self) -> Result<nerflex_core::profiler::Profile, ProfileError> {
+        nerflex_core::profiler::Profile::from_params(&self.size, &self.quality)
     }
 }
 
@@ -198,8 +201,10 @@ impl SceneObject {
         obj.insert("name".into(), Value::String(self.name.clone()));
         match &self.profile {
             Some(p) => {
-                let params =
-                    |m: &ModelParams| serde_json::json!({"k": m.k, "a": m.a, "b": m.b, "m": m.m});
+                let params = |m: &ModelParams| {
+                    serde_json::json!({"k": m.k, "a": m.a, "b": m.b, "m": m.m,
+                                       "g_power": m.family.g_power()})
+                };
                 obj.insert(
                     "profile".into(),
                     serde_json::json!({
@@ -459,11 +464,25 @@ impl Parser<'_> {
                 .field(obj, path, key)?
                 .as_object()
                 .ok_or_else(|| self.err(&mpath, "expected an object with k, a, b, m"))?;
+            let family = match m.get("g_power") {
+                None | Some(Value::Null) => Family::Volume,
+                Some(v) => v
+                    .as_u64()
+                    .and_then(|e| u32::try_from(e).ok())
+                    .and_then(Family::from_g_power)
+                    .ok_or_else(|| {
+                        self.err(
+                            &format!("{mpath}.g_power"),
+                            format!("must be 3 (volume) or 2 (surface), got {v}"),
+                        )
+                    })?,
+            };
             Ok(ModelParams {
                 k: self.number(m, &mpath, "k")?.0,
                 a: self.number(m, &mpath, "a")?.0,
                 b: self.number(m, &mpath, "b")?.0,
                 m: self.number(m, &mpath, "m")?.0,
+                family,
             })
         };
         let size = params("size")?;
@@ -516,28 +535,33 @@ impl Parser<'_> {
     }
 
     fn evaluate(&self, profile: &Profile, path: &str) -> Result<Vec<ConfigEntry>, SceneError> {
+        let field_err = |e: ProfileError| match e {
+            ProfileError::NotFinite { curve, field, .. }
+            | ProfileError::ParamOutOfRange { curve, field, .. } => {
+                self.err(&format!("{path}.{curve}.{field}"), e.to_string())
+            }
+            other => self.err(path, other.to_string()),
+        };
+        let fixed = profile.fixed().map_err(field_err)?;
         let mut out = Vec::with_capacity(profile.g.len() * profile.p.len());
         for &g in &profile.g {
             for &p in &profile.p {
-                let s = profile.size_at(g as f64, p as f64);
-                let size = Bytes::from_f64_ceil(s).map_err(|e| {
-                    self.err(
-                        &format!("{path}.size"),
-                        format!("predicted size at (g {g}, p {p}) is invalid: {e}"),
-                    )
-                })?;
-                let q = profile.quality_at(g as f64, p as f64);
-                if !q.is_finite() {
-                    return Err(self.err(
-                        &format!("{path}.quality"),
-                        format!("predicted quality at (g {g}, p {p}) is not finite ({q})"),
-                    ));
-                }
+                let at = |curve: &str, e: ProfileError| match e {
+                    ProfileError::GridOutOfRange { .. } => {
+                        self.err(&format!("{path}.g"), e.to_string())
+                    }
+                    ProfileError::PatchOutOfRange { .. } => {
+                        self.err(&format!("{path}.p"), e.to_string())
+                    }
+                    other => self.err(&format!("{path}.{curve}"), other.to_string()),
+                };
+                let size = fixed.size.size(g, p).map_err(|e| at("size", e))?;
+                let quality = fixed.quality.quality(g, p).map_err(|e| at("quality", e))?;
                 out.push(ConfigEntry {
                     g,
                     p,
                     size,
-                    quality: q.clamp(0.0, 1.0),
+                    quality: quality.to_f64(),
                 });
             }
         }
@@ -638,9 +662,10 @@ mod tests {
             (c[0].g, c[0].p, c[0].size, c[0].quality),
             (2, 1, Bytes(1004), 0.0)
         );
-        // S(4,3) = 0.5·64·9 + 1000 = 1288; Q = 0.95 − 100/576.
+        // S(4,3) = 0.5·64·9 + 1000 = 1288; Q = 0.95 − 100/576 (to the
+        // Q1.31 step of the fixed-point evaluation).
         assert_eq!(c[3].size, Bytes(1288));
-        assert!((c[3].quality - (0.95 - 100.0 / 576.0)).abs() < 1e-12);
+        assert!((c[3].quality - (0.95 - 100.0 / 576.0)).abs() < 1e-9);
         let again = parse(&s.to_json().to_string(), "x").unwrap();
         assert_eq!(again, s);
         let bad = r#"{"objects": [{"name": "lego", "profile": {
@@ -648,7 +673,53 @@ mod tests {
                 "quality": {"k": 1, "a": 0, "b": 0, "m": 0.95}, "g": [2], "p": [1]}}]}"#;
         assert_eq!(
             err(bad),
-            "scene.json: objects[0].profile.size: predicted size at (g 2, p 1) is invalid: negative value -4"
+            "scene.json: objects[0].profile.size.k: size k = -0.5 is outside the supported range [0, 1024]"
+        );
+    }
+
+    #[test]
+    fn profile_form_g_power_and_range_errors() {
+        let scene = |size: &str, g: &str| {
+            format!(
+                r#"{{"objects": [{{"name": "o", "profile": {{"size": {size},
+                "quality": {{"k": 100, "a": 0, "b": 0, "m": 0.95, "g_power": 2}},
+                "g": {g}, "p": [1, 3]}}}}]}}"#
+            )
+        };
+        let s = parse(
+            &scene(
+                r#"{"k": 0.5, "a": 0, "b": 0, "m": 1000, "g_power": 2}"#,
+                "[2, 4]",
+            ),
+            "scene.json",
+        )
+        .unwrap();
+        let c = &s.objects[0].configs;
+        // S(4,3) = 0.5·16·9 + 1000 = 1072; Q(4,3) = 0.95 − 100/144.
+        assert_eq!(c[3].size, Bytes(1072));
+        assert!((c[3].quality - (0.95 - 100.0 / 144.0)).abs() < 1e-9);
+        let prof = s.objects[0].profile.as_ref().unwrap();
+        assert_eq!(prof.size.family, Family::Surface);
+        assert_eq!(
+            prof.size_gradient(4.0, 3.0),
+            (2.0 * 0.5 * 4.0 * 9.0, 2.0 * 0.5 * 16.0 * 3.0)
+        );
+        let again = parse(&s.to_json().to_string(), "x").unwrap();
+        assert_eq!(again, s);
+        assert_eq!(
+            err(&scene(
+                r#"{"k": 0.5, "a": 0, "b": 0, "m": 1000, "g_power": 4}"#,
+                "[2]"
+            )),
+            "scene.json: objects[0].profile.size.g_power: must be 3 (volume) or 2 (surface), got 4"
+        );
+        assert_eq!(
+            err(&scene(r#"{"k": 0.5, "a": -3, "b": 0, "m": 1000}"#, "[2]")),
+            "scene.json: objects[0].profile.size: at (g 2, p 1) g + a or p + b is outside [0.5, 4096] / [0.5, 256]"
+        );
+        assert_eq!(
+            err(&scene(r#"{"k": 0.5, "a": 0, "b": 0, "m": 1000}"#, "[2000]")),
+            "scene.json: objects[0].profile.g: grid g = 2000 is outside 1..=1024"
         );
     }
 }
