@@ -133,7 +133,7 @@ fn main() -> ! {
     }
 
     hprintln!(
-        "nerflex-firmware target={} cpu=cortex-m4f machine=mps2-an386",
+        "nerflex-firmware target={} machine=mps2-an386",
         env!("FIRMWARE_TARGET")
     );
 
