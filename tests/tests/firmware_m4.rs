@@ -93,7 +93,10 @@ fn build(target: &str) -> Result<PathBuf, String> {
                 "built the firmware for {target} in {:.1} s",
                 t0.elapsed().as_secs_f64()
             );
-            Ok(dir.join("target").join(target).join("release/nerflex-firmware-m4"))
+            Ok(dir
+                .join("target")
+                .join(target)
+                .join("release/nerflex-firmware-m4"))
         } else {
             Err(format!(
                 "firmware build for {target} failed:\n{}",
@@ -263,7 +266,11 @@ fn check(target: &str) {
     let objects = host_objects();
     assert_eq!(objects.len(), workload::OBJECTS);
     let tables = records(&lines, "table");
-    assert_eq!(tables.len(), workload::OBJECTS, "one `table` line per object");
+    assert_eq!(
+        tables.len(),
+        workload::OBJECTS,
+        "one `table` line per object"
+    );
     for (i, (line, host)) in tables.iter().zip(&objects).enumerate() {
         assert_eq!(line.num("object"), i as u64);
         assert_eq!(line.get("name"), host.name);
@@ -284,7 +291,11 @@ fn check(target: &str) {
     let picks = records(&lines, "pick");
     assert_eq!(plans.len(), workload::DEVICES.len());
     let host_tables: Vec<&[Config]> = objects.iter().map(|o| o.table.as_slice()).collect();
-    let mut solver = Box::new(Solver::<{ workload::OBJECTS }, { workload::CONFIGS }, { workload::UNITS }>::new());
+    let mut solver = Box::new(Solver::<
+        { workload::OBJECTS },
+        { workload::CONFIGS },
+        { workload::UNITS },
+    >::new());
     for (line, device) in plans.iter().zip(&workload::DEVICES) {
         let s = solver
             .solve(&host_tables, device.budget, workload::UNIT)
@@ -293,7 +304,12 @@ fn check(target: &str) {
         assert_eq!(line.num("budget_bytes"), device.budget.0);
         assert_eq!(line.num("unit_bytes"), workload::UNIT.0);
         let choices: Vec<String> = s.choices.iter().map(|c| c.to_string()).collect();
-        assert_eq!(line.get("choices"), choices.join(","), "{}: choices", device.name);
+        assert_eq!(
+            line.get("choices"),
+            choices.join(","),
+            "{}: choices",
+            device.name
+        );
         assert_eq!(line.num("total_bytes"), s.total_size.0);
         assert_eq!(line.num("total_units"), s.total_units);
         assert_eq!(line.num("total_quality_q31"), s.total_quality.0);
@@ -375,6 +391,9 @@ fn firmware_panic_exits_non_zero() {
     let elf = build(M4).unwrap_or_else(|e| panic!("{e}"));
     let (text, code) = run(&elf, Some("panic"));
     assert_eq!(code, Some(1), "a panic exits 1; output:\n{text}");
-    assert!(text.contains("panicked at"), "panic message printed: {text}");
+    assert!(
+        text.contains("panicked at"),
+        "panic message printed: {text}"
+    );
     assert!(!text.contains("done"));
 }

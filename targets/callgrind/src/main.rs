@@ -90,7 +90,10 @@ fn main() -> ExitCode {
             let (f0, f1) = workload::texels(3, 5);
             let dir = workload::view_dir(3, 5);
             let rgb = count_pixel(mlp, black_box(f0), black_box(f1), black_box(dir));
-            println!("pixel x=3 y=5 rgb={rgb:?} (mlp source={})", generated::MLP_SOURCE);
+            println!(
+                "pixel x=3 y=5 rgb={rgb:?} (mlp source={})",
+                generated::MLP_SOURCE
+            );
         }
         "tile" => {
             let mut px = vec![[0u8; 3]; (TILE_W * TILE_H) as usize];

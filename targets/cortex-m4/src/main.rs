@@ -13,7 +13,8 @@
 //! Every line is `<record> key=value …`. The run ends with `done` and exit
 //! status 0; any error prints `error …` and exits 1, and so does a panic
 //! (`panic-semihosting` with `exit`) or a fault. The semihosting command
-//! line `panic` (QEMU `-append panic`) panics on purpose, to test that.
+//! line `panic` (QEMU `-append panic`) panics on purpose and `fault`
+//! executes an undefined instruction, to test that.
 
 #![no_std]
 #![no_main]
@@ -25,7 +26,7 @@ use core::mem::size_of;
 
 use cortex_m as _; // critical-section implementation
 use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::{debug, hprintln, nr, syscall};
+use cortex_m_semihosting::{debug, hprintln, nr, syscall1};
 use nerflex_core::mck::{Config, MckError, Solver};
 use nerflex_core::shader::FixedMlp;
 use nerflex_core::units::{Bytes, QualityQ};
@@ -98,28 +99,27 @@ fn shade_tile(mlp: &FixedMlp, out: &mut [[u8; 3]; PIXELS]) {
     workload::shade_tile(mlp, out);
 }
 
-/// The semihosting command line holds the word `panic`.
-fn panic_requested() -> bool {
+/// The semihosting command line holds `word`.
+fn cmdline_has(word: &[u8]) -> bool {
     let mut buf = [0u8; 128];
     let mut block = [buf.as_mut_ptr() as usize, buf.len()];
     // SAFETY: SYS_GET_CMDLINE writes at most `block[1]` bytes into `buf`
     // and the length back into `block[1]`; both live until we read them.
-    let r = unsafe { syscall(nr::GET_CMDLINE, &mut block) };
+    let r = unsafe { syscall1(nr::GET_CMDLINE, block.as_mut_ptr() as usize) };
     // SAFETY: reading back what the host wrote.
     let len = unsafe { core::ptr::read_volatile(&block[1]) };
     if r != 0 || len > buf.len() {
         return false;
     }
     let line = buf.get(..len).unwrap_or(&[]);
-    line.split(|&b| b == b' ').any(|w| w == b"panic")
+    line.split(|&b| b == b' ').any(|w| w == word)
 }
 
 fn fail(what: &str, e: &dyn core::fmt::Display) -> ! {
     hprintln!("error {what}: {e}");
     debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::udf();
-    }
+    // Not reached: the exit above stops QEMU; a fault here exits 1.
+    cortex_m::asm::udf()
 }
 
 #[entry]
@@ -128,8 +128,12 @@ fn main() -> ! {
     static mut SOLVER: PaperSolver = PaperSolver::new();
     static mut PIXEL_BUF: [[u8; 3]; PIXELS] = [[0; 3]; PIXELS];
 
-    if panic_requested() {
+    if cmdline_has(b"panic") {
         panic!("deliberate panic (semihosting command line `panic`)");
+    }
+    if cmdline_has(b"fault") {
+        // An undefined instruction: the HardFault handler must exit 1.
+        cortex_m::asm::udf();
     }
 
     hprintln!(
@@ -219,7 +223,9 @@ fn main() -> ! {
     let ((), tile_peak) = stack::measure(|| shade_tile(mlp, px));
     for y in 0..TILE_H {
         let mut hex = [0u8; 6 * TILE_W as usize];
-        let row = px.get((y * TILE_W) as usize..((y + 1) * TILE_W) as usize).unwrap_or(&[]);
+        let row = px
+            .get((y * TILE_W) as usize..((y + 1) * TILE_W) as usize)
+            .unwrap_or(&[]);
         for (h, p) in hex.chunks_exact_mut(6).zip(row) {
             for (pair, &v) in h.chunks_exact_mut(2).zip(p) {
                 const DIGITS: &[u8; 16] = b"0123456789abcdef";
@@ -257,18 +263,16 @@ fn main() -> ! {
     );
     hprintln!("done");
     debug::exit(debug::EXIT_SUCCESS);
-    loop {
-        cortex_m::asm::udf();
-    }
+    // Not reached: the exit above stops QEMU; a fault here exits 1.
+    cortex_m::asm::udf()
 }
 
 #[exception]
 unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
     hprintln!("error hardfault pc={:#010x}", ef.pc());
     debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::udf();
-    }
+    // Not reached: the exit above stops QEMU; a fault here exits 1.
+    cortex_m::asm::udf()
 }
 
 #[exception]

@@ -42,7 +42,9 @@ impl core::fmt::Display for Peak {
 fn stack_pointer() -> usize {
     let sp: usize;
     // SAFETY: reads a register, no memory access.
-    unsafe { core::arch::asm!("mov {}, sp", out(reg) sp, options(nomem, nostack, preserves_flags)) };
+    unsafe {
+        core::arch::asm!("mov {}, sp", out(reg) sp, options(nomem, nostack, preserves_flags))
+    };
     sp
 }
 
