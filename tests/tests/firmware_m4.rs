@@ -383,7 +383,7 @@ fn cortex_m0_firmware_matches_the_host() {
 }
 
 #[test]
-fn firmware_panic_exits_non_zero() {
+fn firmware_panic_and_fault_exit_non_zero() {
     if let Some(why) = missing_prerequisite(M4) {
         eprintln!("SKIPPED firmware panic exit ({M4}): {why}");
         return;
@@ -396,4 +396,10 @@ fn firmware_panic_exits_non_zero() {
         "panic message printed: {text}"
     );
     assert!(!text.contains("done"));
+    let (text, code) = run(&elf, Some("fault"));
+    assert_eq!(code, Some(1), "a hard fault exits 1; output:\n{text}");
+    assert!(
+        text.starts_with("error hardfault"),
+        "fault reported: {text}"
+    );
 }
