@@ -72,10 +72,17 @@ fn mlp_source(manifest: &Path, src: &mut String) -> Result<(), BoxError> {
             (w, "lego_mlp.json")
         }
         _ => {
-            let looked = file.map_or_else(
-                || "no shared data folder (set NERFLEX_DATA or put shared/data beside the repository)".to_string(),
-                |p| format!("{} is missing", p.display()),
-            );
+            let looked = match (file, env::var_os("NERFLEX_DATA")) {
+                (Some(p), _) => format!("{} is missing", p.display()),
+                (None, Some(v)) => format!(
+                    "NERFLEX_DATA={} is not a folder",
+                    PathBuf::from(v).display()
+                ),
+                (None, None) => {
+                    "no shared/data folder beside the repository and NERFLEX_DATA is not set"
+                        .to_string()
+                }
+            };
             println!(
                 "cargo:warning=real MLP weights not found ({looked}); embedding the deterministic SYNTHETIC weight set of src/workload.rs, the firmware will print `mlp source=synthetic`"
             );
