@@ -99,7 +99,9 @@ fn build(target: &str) -> Result<PathBuf, String> {
                 .join("release/nerflex-firmware-m4"))
         } else {
             Err(format!(
-                "firmware build for {target} failed:\n{}",
+                "firmware build for {target} failed (if its Cargo.lock is out of date after a \
+                 change of the core's dependencies, run `cargo build` once in targets/cortex-m4 \
+                 and commit the lock file):\n{}",
                 String::from_utf8_lossy(&o.stderr)
             ))
         }

@@ -2,7 +2,9 @@
 //! on board, printed over semihosting in a line format that
 //! `tests/tests/firmware_m4.rs` parses and compares with the host build.
 //!
-//! 1. the five objects' configuration tables (5 × 45 configurations);
+//! 1. the five objects' configuration tables (5 × 45 configurations),
+//!    evaluated from their fitted profiles on the host at build time (until
+//!    the fixed-point `nerflex_core::profiler` lands and runs here);
 //! 2. the exact MCK plan for the iPhone 13 (240 MB) and Pixel 4 (150 MB)
 //!    budgets in 0.1 MB units, with `Solver<5, 45, 2400>` in a static;
 //! 3. a 16 × 16 tile of texels shaded by the fixed-point lego MLP
@@ -169,7 +171,10 @@ fn main() -> ! {
         };
         let p = match r {
             Ok(p) => p,
-            Err(e) => fail("plan", &e),
+            Err(e) => {
+                hprintln!("error plan device={}", device.name);
+                fail(device.name, &e)
+            }
         };
         hprintln!(
             "plan device={} budget_bytes={} unit_bytes={} choices={},{},{},{},{} total_bytes={} total_units={} total_quality_q31={}",
