@@ -1,10 +1,310 @@
-//! `nerflex bake` (under construction).
+//! `nerflex bake`: bake MobileNeRF-format assets from posed captures, one
+//! (g, p) or a sweep, optionally measured against the held-out views.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{bail, Context as _};
+
+use crate::bake::sweep::{self, Cache, ObjectViews, SweepOptions};
+use crate::bake::{self, carve::VoxelTest, BakeParams, Geometry};
+use crate::capture::Capture;
+use crate::metrics::Lpips;
+
+/// Default folder of the sweep's sample cache (inside cargo's ignored
+/// `target/`: a cache, not a result).
+pub const DEFAULT_CACHE: &str = "target/bake-cache";
 
 /// Flags of `nerflex bake`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Capture folder in the NeRF-synthetic layout (`transforms_train.json`,
+    /// `transforms_test.json`, images); with `--sweep`, repeat for more objects.
+    #[arg(long, required = true)]
+    pub capture: Vec<PathBuf>,
+    /// Object(s) of a multi-object capture (`scene.json` names), comma-separated.
+    #[arg(long, value_delimiter = ',')]
+    pub object: Vec<String>,
+    /// Grid g (voxels per edge); with `--sweep`, a comma-separated list.
+    #[arg(long, value_delimiter = ',', required = true)]
+    pub grid: Vec<u32>,
+    /// Patch p (texels per quad edge); with `--sweep`, a comma-separated list.
+    #[arg(long, value_delimiter = ',', required = true)]
+    pub patch: Vec<u32>,
+    /// Output folder of the asset (MobileNeRF export layout).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Render the held-out test views and report SSIM, PSNR, LPIPS.
+    #[arg(long)]
+    pub measure: bool,
+    /// With `--measure`: also write each test view's render and ground
+    /// truth (`test_{i}.png`, `truth_{i}.png`, over white) here.
+    #[arg(long)]
+    pub renders: Option<PathBuf>,
+    /// Side (pixels) the `--renders` pictures are scaled down to (default:
+    /// full size).
+    #[arg(long)]
+    pub renders_size: Option<u32>,
+    /// Bake and measure every (capture, g, p) into a samples CSV.
+    #[arg(long)]
+    pub sweep: bool,
+    /// The samples CSV of `--sweep`.
+    #[arg(long, default_value = "results/bake/samples.csv")]
+    pub csv: PathBuf,
+    /// With `--sweep`: also draw size-vs-g and SSIM-vs-g pictures, one per
+    /// object, into this folder.
+    #[arg(long)]
+    pub plots: Option<PathBuf>,
+    /// Cache folder of measured samples (default: target/bake-cache).
+    #[arg(long)]
+    pub cache: Option<PathBuf>,
+    /// Bake everything again, ignoring the cache.
+    #[arg(long)]
+    pub no_cache: bool,
+    /// Bakes running at once during a sweep (each bake is parallel inside).
+    #[arg(long, default_value_t = 2)]
+    pub jobs: usize,
+    /// Use only the first N training views.
+    #[arg(long)]
+    pub max_views: Option<usize>,
+    /// Use only the first N test views for `--measure` / `--sweep`.
+    #[arg(long)]
+    pub max_test_views: Option<usize>,
+    /// Exponent k of the frontal weighting cos(θ)^k of a view's colour.
+    #[arg(long, default_value_t = 1.0)]
+    pub frontal_power: f32,
+    /// Quad placement: shell (faces of every voxel the hull's surface
+    /// crosses, texel alpha from the hull) or boundary (faces between
+    /// carved and empty voxels).
+    #[arg(long, default_value = "shell", value_parser = parse_geometry)]
+    pub geometry: Geometry,
+    /// With `--geometry boundary`: which voxels survive carving (centre,
+    /// any-point or footprint).
+    #[arg(long, default_value = "centre", value_parser = parse_voxel_test)]
+    pub voxel_test: VoxelTest,
+    /// LPIPS weights (default: `lpips/` in the shared data folder; LPIPS is
+    /// left out if absent).
+    #[arg(long)]
+    pub lpips_weights: Option<PathBuf>,
+}
+
+fn parse_geometry(s: &str) -> Result<Geometry, String> {
+    match s {
+        "shell" => Ok(Geometry::Shell),
+        "boundary" => Ok(Geometry::Boundary),
+        _ => Err(format!("`{s}` is not a geometry (shell, boundary)")),
+    }
+}
+
+fn parse_voxel_test(s: &str) -> Result<VoxelTest, String> {
+    match s {
+        "centre" | "center" => Ok(VoxelTest::Centre),
+        "any-point" => Ok(VoxelTest::AnyPoint),
+        "footprint" => Ok(VoxelTest::Footprint),
+        _ => Err(format!(
+            "`{s}` is not a voxel test (centre, any-point, footprint)"
+        )),
+    }
+}
+
+/// Loads every object the flags name: each `--capture`, and in it each
+/// `--object` (or its only object).
+pub fn load_objects(args: &Args) -> anyhow::Result<Vec<ObjectViews>> {
+    let mut out = Vec::new();
+    for dir in &args.capture {
+        let mut cap = Capture::load(dir)?;
+        if let Some(n) = args.max_views {
+            cap.train.truncate(n.max(1));
+        }
+        if let Some(n) = args.max_test_views {
+            cap.test.truncate(n);
+        }
+        if args.object.is_empty() {
+            out.push(ObjectViews::from_capture(&cap, None)?);
+        }
+        for name in &args.object {
+            out.push(ObjectViews::from_capture(&cap, Some(name))?);
+        }
+    }
+    Ok(out)
+}
+
+fn lpips(args: &Args) -> anyhow::Result<Option<Lpips>> {
+    let path = match &args.lpips_weights {
+        Some(p) => Some(p.clone()),
+        None => Lpips::default_path(),
+    };
+    match path {
+        Some(p) => Ok(Some(Lpips::load(&p)?)),
+        None => {
+            eprintln!("LPIPS weights not found: LPIPS is left out (pass --lpips-weights FILE)");
+            Ok(None)
+        }
+    }
+}
+
+/// A picture for people: composited over white, optionally scaled so its
+/// longer side is `size` pixels.
+fn picture(img: &image::RgbaImage, size: Option<u32>) -> image::RgbaImage {
+    let white = image::RgbaImage::from_fn(img.width(), img.height(), |x, y| {
+        let p = img.get_pixel(x, y).0;
+        let a = u32::from(p[3]);
+        let c = |v: u8| ((u32::from(v) * a + 255 * (255 - a) + 127) / 255) as u8;
+        image::Rgba([c(p[0]), c(p[1]), c(p[2]), 255])
+    });
+    match size {
+        Some(s) if s > 0 && s < img.width().max(img.height()) => {
+            let k = f64::from(s) / f64::from(img.width().max(img.height()));
+            let w = ((f64::from(img.width()) * k).round() as u32).max(1);
+            let h = ((f64::from(img.height()) * k).round() as u32).max(1);
+            image::imageops::resize(&white, w, h, image::imageops::FilterType::Triangle)
+        }
+        _ => white,
+    }
+}
+
+fn base_params(args: &Args) -> BakeParams {
+    let mut p = BakeParams::new(0, 0);
+    p.frontal_power = args.frontal_power;
+    p.voxel_test = args.voxel_test;
+    p.geometry = args.geometry;
+    p
+}
 
 /// Runs `nerflex bake`.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`nerflex bake` is not implemented yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.sweep {
+        return run_sweep(&args);
+    }
+    let (g, p) = match (args.grid.as_slice(), args.patch.as_slice()) {
+        ([g], [p]) => (*g, *p),
+        _ => bail!("without --sweep, --grid and --patch take one value each"),
+    };
+    if args.out.is_none() && !args.measure {
+        bail!("nothing to do: give --out DIR to write the asset and/or --measure");
+    }
+    let t0 = Instant::now();
+    let objects = load_objects(&args)?;
+    let [obj] = objects.as_slice() else {
+        bail!("without --sweep, bake one object: give one --capture and at most one --object");
+    };
+    let t_load = t0.elapsed().as_secs_f64();
+    let mut params = base_params(&args);
+    params.grid = g;
+    params.patch = p;
+    params.search_box = obj.search_box;
+    let t1 = Instant::now();
+    let views = obj.bake_views();
+    let baked = bake::bake(&views, &params)?;
+    let t_bake = t1.elapsed().as_secs_f64();
+    let s = baked.stats;
+    let (quads, pages, gpu_bytes) = (
+        baked.quads.len(),
+        baked.atlas.pages.len(),
+        baked.gpu_bytes(),
+    );
+    let asset = baked.into_asset()?;
+    let t2 = Instant::now();
+    let file_bytes = match &args.out {
+        Some(out) => asset.write(out)?,
+        None => bake::file_bytes(&asset)?,
+    };
+    let t_write = t2.elapsed().as_secs_f64();
+    println!(
+        "{}: g={g} p={p} from {} views: {quads} quads, {pages} atlas page pair(s), {} occupied voxels",
+        obj.name,
+        views.len(),
+        s.occupied_voxels,
+    );
+    println!(
+        "texels: {} seen, {} unseen (filled), {} empty",
+        s.seen_texels, s.unseen_texels, s.empty_texels
+    );
+    println!(
+        "size: {file_bytes} file bytes ({:.1} MiB), {gpu_bytes} GPU bytes ({:.1} MiB)",
+        file_bytes as f64 / 1048576.0,
+        gpu_bytes as f64 / 1048576.0
+    );
+    println!(
+        "time: bake {t_bake:.2} s (carve {:.2}, quads {:.2}, views {:.2}, colour {:.2}, atlas {:.2}), encode+write {t_write:.2} s, load {t_load:.2} s",
+        s.times.carve_s, s.times.quads_s, s.times.views_s, s.times.colour_s, s.times.atlas_s
+    );
+    if let Some(out) = &args.out {
+        println!("wrote {}", out.display());
+    }
+    if args.measure {
+        let net = lpips(&args)?;
+        let (q, renders) = sweep::measure(
+            &asset,
+            &obj.test,
+            &sweep::fixed_point_render,
+            net.as_ref(),
+            args.renders.is_some(),
+        )?;
+        if let Some(dir) = &args.renders {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("{}: cannot create", dir.display()))?;
+            for (i, (img, (_, truth))) in renders.iter().zip(&obj.test).enumerate() {
+                for (name, pic) in [("test", img), ("truth", truth)] {
+                    let path = dir.join(format!("{name}_{i}.png"));
+                    picture(pic, args.renders_size)
+                        .save(&path)
+                        .with_context(|| format!("{}: cannot write", path.display()))?;
+                }
+            }
+        }
+        println!(
+            "quality over {} test views: SSIM {:.4}, PSNR {:.2} dB{}",
+            obj.test.len(),
+            q.ssim,
+            q.psnr,
+            q.lpips.map_or(String::new(), |l| format!(", LPIPS {l:.4}"))
+        );
+    }
+    Ok(())
+}
+
+fn run_sweep(args: &Args) -> anyhow::Result<()> {
+    let objects = load_objects(args)?;
+    let net = lpips(args)?;
+    let cache_dir = args
+        .cache
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(DEFAULT_CACHE));
+    let opts = SweepOptions {
+        grids: args.grid.clone(),
+        patches: args.patch.clone(),
+        base: base_params(args),
+        jobs: args.jobs,
+        cache: (!args.no_cache).then(|| Cache::new(&cache_dir)),
+        lpips: net.as_ref(),
+        progress: true,
+    };
+    let t0 = Instant::now();
+    let report = sweep::run(&objects, &opts, &sweep::fixed_point_render)?;
+    sweep::write_csv(&args.csv, &report.samples)?;
+    if let Some(dir) = &args.plots {
+        for p in sweep::plot_objects(&report.samples, dir)? {
+            println!("wrote {}", p.display());
+        }
+    }
+    let breaks = sweep::monotonicity_report(&report.samples, 0.0);
+    println!(
+        "{} neighbouring configuration pairs where size does not grow or SSIM falls{}",
+        breaks.len(),
+        if breaks.is_empty() { "" } else { ":" }
+    );
+    for b in &breaks {
+        println!("  {b}");
+    }
+    println!(
+        "{} samples ({} baked, {} reused from {}) in {:.1} s → {}",
+        report.samples.len(),
+        report.baked,
+        report.reused,
+        cache_dir.display(),
+        t0.elapsed().as_secs_f64(),
+        args.csv.display()
+    );
+    Ok(())
 }

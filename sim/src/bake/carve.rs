@@ -1,0 +1,619 @@
+//! Silhouette voxel carving (the visual hull on a g³ grid).
+//!
+//! A voxel survives if, in every view that sees it whole, its projected
+//! footprint touches the object's silhouette, at least half of the views
+//! see it (so the corners of the search box outside most frusta go), and
+//! it passes a point test ([`VoxelTest`], by default: its centre projects
+//! onto the silhouette in every view at once). The footprint is the square
+//! around the projected centre that contains the projection of the voxel's
+//! bounding sphere; that test alone is conservative (a voxel only goes when
+//! some view shows background all around it) and cheap, so it runs first.
+//! Views that see a voxel only partly (footprint crossing the image border)
+//! or from inside its sphere say nothing about it.
+//!
+//! Shape finer than a voxel comes from the texels: [`texel_occupancy`]
+//! empties the texels of thin voxels that lie outside the hull.
+
+use glam::{Mat4, Vec3};
+use rayon::prelude::*;
+
+use super::quads::Quad;
+use super::{Aabb, BakeView};
+
+/// Where objects of the NeRF-synthetic convention live: every object of the
+/// dataset fits in [-1.5, 1.5]³ (lego spans about [-0.64, 0.64] ×
+/// [-1.15, 0.97] × [-0.35, 1.0]).
+pub const NERF_SYNTHETIC_BOX: Aabb = Aabb {
+    min: Vec3::splat(-1.5),
+    max: Vec3::splat(1.5),
+};
+
+/// Grid of the coarse carve that finds the object's cube.
+pub const SEARCH_GRID: u32 = 96;
+
+/// Largest grid the baker accepts (512³ voxels = 128 MiB of occupancy).
+pub const MAX_GRID: u32 = 512;
+
+/// A binary silhouette per view with a summed-area table, so the number of
+/// foreground pixels in any rectangle costs four reads.
+pub struct Silhouettes {
+    tables: Vec<SummedArea>,
+    projs: Vec<Proj>,
+}
+
+struct SummedArea {
+    width: u32,
+    height: u32,
+    /// (width + 1) × (height + 1) prefix sums of the foreground indicator.
+    sums: Vec<u32>,
+    /// The foreground indicator itself, row-major.
+    fg: Vec<bool>,
+}
+
+impl SummedArea {
+    fn new(view: &BakeView<'_>) -> Self {
+        let (w, h) = view.image.dimensions();
+        let stride = w as usize + 1;
+        let mut sums = vec![0u32; stride * (h as usize + 1)];
+        let mut fg = vec![false; w as usize * h as usize];
+        for y in 0..h {
+            let mut row = 0u32;
+            for x in 0..w {
+                // Coverage ≥ 50 % is the object.
+                let f = view.coverage(x, y) >= 128;
+                fg[y as usize * w as usize + x as usize] = f;
+                row += u32::from(f);
+                let i = (y as usize + 1) * stride + x as usize + 1;
+                sums[i] = sums[i - stride] + row;
+            }
+        }
+        Self {
+            width: w,
+            height: h,
+            sums,
+            fg,
+        }
+    }
+
+    /// Foreground pixels in [x0, x1) × [y0, y1) (already clipped).
+    #[inline]
+    fn count(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> u32 {
+        let s = self.width as usize + 1;
+        let at = |x: u32, y: u32| self.sums[y as usize * s + x as usize];
+        at(x1, y1) + at(x0, y0) - at(x0, y1) - at(x1, y0)
+    }
+}
+
+impl Silhouettes {
+    /// Builds the tables of every view (in parallel).
+    pub fn new(views: &[BakeView<'_>]) -> Self {
+        Self {
+            tables: views.par_iter().map(SummedArea::new).collect(),
+            projs: views
+                .iter()
+                .map(|v| {
+                    let k = &v.camera.intrinsics;
+                    Proj {
+                        w2c: v.camera.w2c(),
+                        fx: k.fx,
+                        fy: k.fy,
+                        cx: k.cx,
+                        cy: k.cy,
+                        width: k.width as f32,
+                        height: k.height as f32,
+                    }
+                })
+                .collect(),
+        }
+    }
+
+    /// Number of views.
+    pub fn len(&self) -> usize {
+        self.tables.len()
+    }
+
+    /// Whether there are no views.
+    pub fn is_empty(&self) -> bool {
+        self.tables.is_empty()
+    }
+
+    /// Whether a point is inside the visual hull: no view that has it in
+    /// frame shows background at its pixel.
+    #[inline]
+    pub fn inside(&self, x: Vec3) -> bool {
+        // Points that fewer than half of the views have in frame are not
+        // evidence of matter (as for voxels).
+        let min_seen = self.len().div_ceil(2).max(1);
+        let mut seen = 0;
+        for (p, t) in self.projs.iter().zip(&self.tables) {
+            let c = p.w2c.transform_point3(x);
+            let depth = -c.z;
+            if depth <= 1e-4 {
+                continue;
+            }
+            let px = p.cx + p.fx * c.x / depth;
+            let py = p.cy - p.fy * c.y / depth;
+            if !(px >= 0.0 && py >= 0.0 && px < p.width && py < p.height) {
+                continue;
+            }
+            if !t.fg[py as usize * t.width as usize + px as usize] {
+                return false;
+            }
+            seen += 1;
+        }
+        seen >= min_seen
+    }
+}
+
+impl Silhouettes {
+    /// [`Silhouettes::inside`] for a point already known to be on the
+    /// silhouette in `known_seen` views: only the views in `views` are tested.
+    #[inline]
+    fn inside_views(&self, x: Vec3, views: &[usize], known_seen: usize, min_seen: usize) -> bool {
+        let mut seen = known_seen;
+        for &vi in views {
+            let (p, t) = (&self.projs[vi], &self.tables[vi]);
+            let c = p.w2c.transform_point3(x);
+            let depth = -c.z;
+            if depth <= 1e-4 {
+                continue;
+            }
+            let px = p.cx + p.fx * c.x / depth;
+            let py = p.cy - p.fy * c.y / depth;
+            if !(px >= 0.0 && py >= 0.0 && px < p.width && py < p.height) {
+                continue;
+            }
+            if !t.fg[py as usize * t.width as usize + px as usize] {
+                return false;
+            }
+            seen += 1;
+        }
+        seen >= min_seen
+    }
+}
+
+/// Where a voxel is relative to the visual hull, judged at 27 points.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum VoxelClass {
+    /// No sample inside.
+    Empty,
+    /// Some samples inside, some outside: the hull's surface crosses it.
+    Shell,
+    /// Every sample inside.
+    Full,
+}
+
+/// A g³ grid classified against the hull (see [`shell`]).
+#[derive(Debug, Clone)]
+pub struct ShellGrid {
+    /// Voxels per edge.
+    pub g: u32,
+    /// World position of the grid's lower corner.
+    pub origin: Vec3,
+    /// Edge length of a voxel, world units.
+    pub voxel: f32,
+    /// Class of each voxel, x fastest, then y, then z.
+    class: Vec<VoxelClass>,
+}
+
+impl ShellGrid {
+    /// The class of voxel (i, j, k); outside the grid is empty.
+    #[inline]
+    pub fn class(&self, i: i64, j: i64, k: i64) -> VoxelClass {
+        let g = self.g as i64;
+        if i < 0 || j < 0 || k < 0 || i >= g || j >= g || k >= g {
+            return VoxelClass::Empty;
+        }
+        self.class[((k * g + j) * g + i) as usize]
+    }
+
+    /// The lower corner of voxel (i, j, k).
+    #[inline]
+    pub fn corner(&self, i: u32, j: u32, k: u32) -> Vec3 {
+        self.origin + self.voxel * Vec3::new(i as f32, j as f32, k as f32)
+    }
+
+    /// Number of voxels of a class.
+    pub fn count(&self, c: VoxelClass) -> u64 {
+        self.class.iter().filter(|&&v| v == c).count() as u64
+    }
+}
+
+/// Classifies a `g`³ grid spanning `cube` by sampling the hull at 27 points
+/// of each voxel (corners, edge midpoints, face centres, centre: a lattice of
+/// half-voxel spacing). A voxel is [`VoxelClass::Shell`] when they disagree,
+/// so parts down to about half a voxel thick are found. The footprint test
+/// decides voxels wholly outside (or inside) the hull first, so only the
+/// voxels near the surface are sampled.
+pub fn shell(sil: &Silhouettes, cube: &Aabb, g: u32) -> ShellGrid {
+    let g = g.clamp(1, MAX_GRID);
+    let voxel = (cube.max - cube.min).max_element() / g as f32;
+    let origin = cube.min;
+    let radius = 0.5 * 3f32.sqrt() * voxel;
+    let half = 0.5 * voxel;
+    let gu = g as usize;
+    let mut class = vec![VoxelClass::Empty; gu * gu * gu];
+    class
+        .par_chunks_mut(gu * gu)
+        .enumerate()
+        .for_each(|(k, slice)| {
+            for j in 0..gu {
+                for i in 0..gu {
+                    let lo = origin + voxel * Vec3::new(i as f32, j as f32, k as f32);
+                    // The footprint test settles most voxels at once: background
+                    // in some view → empty; inside the silhouette in every
+                    // view → full. Only the others are sampled point by point.
+                    let mut all_inside = true;
+                    let mut empty = false;
+                    for (p, t) in sil.projs.iter().zip(&sil.tables) {
+                        match judge(p, t, lo + Vec3::splat(half), radius) {
+                            Verdict::Background => {
+                                empty = true;
+                                break;
+                            }
+                            Verdict::Inside => {}
+                            Verdict::Object | Verdict::Unseen => all_inside = false,
+                        }
+                    }
+                    slice[j * gu + i] = if empty {
+                        VoxelClass::Empty
+                    } else if all_inside {
+                        VoxelClass::Full
+                    } else {
+                        let inside = (0..27)
+                            .filter(|c| {
+                                let o =
+                                    Vec3::new((c % 3) as f32, ((c / 3) % 3) as f32, (c / 9) as f32);
+                                sil.inside(lo + half * o)
+                            })
+                            .count();
+                        match inside {
+                            0 => VoxelClass::Empty,
+                            27 => VoxelClass::Full,
+                            _ => VoxelClass::Shell,
+                        }
+                    };
+                }
+            }
+        });
+    ShellGrid {
+        g,
+        origin,
+        voxel,
+        class,
+    }
+}
+
+/// Texel occupancy of shell quads: a texel holds matter iff its point is
+/// inside the visual hull. Each quad is first judged whole in every view
+/// from the bounding box of its projection: a view showing only background
+/// there empties the quad, views showing only silhouette there need no
+/// per-texel test, so texels are tested only against the views where the
+/// quad straddles the silhouette's edge.
+pub fn texel_occupancy_hull(sil: &Silhouettes, quads: &[Quad], p: u32) -> Vec<bool> {
+    let p = p.max(2) as usize;
+    let mut occ = vec![false; quads.len() * p * p];
+    let step = 1.0 / (p - 1) as f32;
+    let min_seen = sil.len().div_ceil(2).max(1);
+    occ.par_chunks_mut(p * p)
+        .zip(quads.par_iter())
+        .for_each_init(Vec::new, |edge_views, (cell, q)| {
+            edge_views.clear();
+            let mut seen = 0;
+            for (vi, (pr, t)) in sil.projs.iter().zip(&sil.tables).enumerate() {
+                match judge_quad(pr, t, q) {
+                    QuadVerdict::Background => return, // all texels empty
+                    QuadVerdict::Inside => seen += 1,
+                    QuadVerdict::Edge => edge_views.push(vi),
+                }
+            }
+            for ty in 0..p {
+                for tx in 0..p {
+                    let x = q.point(tx as f32 * step, ty as f32 * step);
+                    cell[ty * p + tx] = sil.inside_views(x, edge_views, seen, min_seen);
+                }
+            }
+        });
+    occ
+}
+
+/// What one view says about a whole quad.
+enum QuadVerdict {
+    /// Only background around the quad's projection.
+    Background,
+    /// Only silhouette around it.
+    Inside,
+    /// Both, or the quad is not wholly in frame: test texel by texel.
+    Edge,
+}
+
+fn judge_quad(p: &Proj, t: &SummedArea, q: &Quad) -> QuadVerdict {
+    let (mut x0, mut y0, mut x1, mut y1) = (f32::MAX, f32::MAX, f32::MIN, f32::MIN);
+    for c in q.corners() {
+        let v = p.w2c.transform_point3(c);
+        let depth = -v.z;
+        if depth <= 1e-4 {
+            return QuadVerdict::Edge;
+        }
+        let px = p.cx + p.fx * v.x / depth;
+        let py = p.cy - p.fy * v.y / depth;
+        x0 = x0.min(px);
+        x1 = x1.max(px);
+        y0 = y0.min(py);
+        y1 = y1.max(py);
+    }
+    // Pixels whose centre-lookup a texel point may hit: floor of the box.
+    if x0 < 0.0 || y0 < 0.0 || x1 >= p.width || y1 >= p.height {
+        return QuadVerdict::Edge;
+    }
+    let (xa, ya) = (x0.floor() as u32, y0.floor() as u32);
+    let (xb, yb) = (
+        (x1.floor() as u32 + 1).min(t.width),
+        (y1.floor() as u32 + 1).min(t.height),
+    );
+    let count = t.count(xa, ya, xb, yb);
+    if count == 0 {
+        QuadVerdict::Background
+    } else if count == (xb - xa) * (yb - ya) {
+        QuadVerdict::Inside
+    } else {
+        QuadVerdict::Edge
+    }
+}
+
+/// The carved occupancy of a g³ grid over a cube.
+#[derive(Debug, Clone)]
+pub struct Grid {
+    /// Voxels per edge.
+    pub g: u32,
+    /// World position of the grid's lower corner.
+    pub origin: Vec3,
+    /// Edge length of a voxel, world units.
+    pub voxel: f32,
+    /// Occupancy, x fastest, then y, then z.
+    occ: Vec<bool>,
+}
+
+impl Grid {
+    /// Whether voxel (i, j, k) is occupied; outside the grid is empty.
+    #[inline]
+    pub fn occupied(&self, i: i64, j: i64, k: i64) -> bool {
+        let g = self.g as i64;
+        if i < 0 || j < 0 || k < 0 || i >= g || j >= g || k >= g {
+            return false;
+        }
+        self.occ[((k * g + j) * g + i) as usize]
+    }
+
+    /// Number of occupied voxels.
+    pub fn occupied_count(&self) -> u64 {
+        self.occ.iter().filter(|&&o| o).count() as u64
+    }
+
+    /// The lower corner of voxel (i, j, k).
+    #[inline]
+    pub fn corner(&self, i: u32, j: u32, k: u32) -> Vec3 {
+        self.origin + self.voxel * Vec3::new(i as f32, j as f32, k as f32)
+    }
+
+    /// The box of the occupied voxels, if any.
+    pub fn occupied_bounds(&self) -> Option<Aabb> {
+        let g = self.g as usize;
+        let mut lo = [usize::MAX; 3];
+        let mut hi = [0usize; 3];
+        for (n, _) in self.occ.iter().enumerate().filter(|(_, &o)| o) {
+            let c = [n % g, (n / g) % g, n / (g * g)];
+            for a in 0..3 {
+                lo[a] = lo[a].min(c[a]);
+                hi[a] = hi[a].max(c[a] + 1);
+            }
+        }
+        (lo[0] != usize::MAX).then(|| Aabb {
+            min: self.origin + self.voxel * Vec3::new(lo[0] as f32, lo[1] as f32, lo[2] as f32),
+            max: self.origin + self.voxel * Vec3::new(hi[0] as f32, hi[1] as f32, hi[2] as f32),
+        })
+    }
+}
+
+/// Per-view projection constants for the carving loop.
+struct Proj {
+    w2c: Mat4,
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+    width: f32,
+    height: f32,
+}
+
+/// Carves a `g`³ grid spanning `cube` with every view's silhouette,
+/// keeping the voxels that pass `test`.
+pub fn carve(sil: &Silhouettes, cube: &Aabb, g: u32, test: VoxelTest) -> Grid {
+    let g = g.clamp(1, MAX_GRID);
+    let voxel = (cube.max - cube.min).max_element() / g as f32;
+    let origin = cube.min;
+    let projs = &sil.projs;
+    // Radius of the voxel's bounding sphere.
+    let radius = 0.5 * 3f32.sqrt() * voxel;
+    // A voxel must be seen by at least half of the views: space outside
+    // most frusta (the corners of the search box) is not evidence of matter.
+    let min_seen = sil.len().div_ceil(2).max(1);
+    let gu = g as usize;
+    let mut occ = vec![false; gu * gu * gu];
+    occ.par_chunks_mut(gu * gu)
+        .enumerate()
+        .for_each(|(k, slice)| {
+            for j in 0..gu {
+                for i in 0..gu {
+                    let centre =
+                        origin + voxel * Vec3::new(i as f32 + 0.5, j as f32 + 0.5, k as f32 + 0.5);
+                    let mut seen = 0usize;
+                    let mut keep = true;
+                    for (p, t) in projs.iter().zip(&sil.tables) {
+                        match judge(p, t, centre, radius) {
+                            Verdict::Background => {
+                                keep = false;
+                                break;
+                            }
+                            Verdict::Object | Verdict::Inside => seen += 1,
+                            Verdict::Unseen => {}
+                        }
+                    }
+                    slice[j * gu + i] = keep
+                        && seen >= min_seen
+                        && point_test(
+                            sil,
+                            origin + voxel * Vec3::new(i as f32, j as f32, k as f32),
+                            voxel,
+                            test,
+                        );
+                }
+            }
+        });
+    Grid {
+        g,
+        origin,
+        voxel,
+        occ,
+    }
+}
+
+/// Sub-samples per voxel edge of [`VoxelTest::AnyPoint`].
+pub const SUBSAMPLES: u32 = 4;
+
+/// Which voxels survive carving (all three first pass the conservative
+/// footprint test, which is cheap and rejects most empty space).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum VoxelTest {
+    /// The voxel's centre projects onto the silhouette in every view: the
+    /// surface is off by at most half a voxel either way (the default; it
+    /// measured best on lego and chair at g = 16 and 128, see
+    /// `docs/baking.md`).
+    #[default]
+    Centre,
+    /// Some point of a 4×4×4 lattice in the voxel does: parts down to a
+    /// quarter voxel survive, but the hull grows by up to a voxel.
+    AnyPoint,
+    /// Only the footprint test: the voxel's projected bounding square
+    /// touches the silhouette in every view (most conservative, fattest).
+    Footprint,
+}
+
+/// The exact part of the voxel test that follows the footprint test.
+fn point_test(sil: &Silhouettes, lo: Vec3, voxel: f32, test: VoxelTest) -> bool {
+    match test {
+        VoxelTest::Footprint => true,
+        VoxelTest::Centre => sil.inside(lo + Vec3::splat(0.5 * voxel)),
+        VoxelTest::AnyPoint => {
+            if sil.inside(lo + Vec3::splat(0.5 * voxel)) {
+                return true;
+            }
+            let n = SUBSAMPLES;
+            let step = voxel / n as f32;
+            (0..n * n * n).any(|m| {
+                let (a, b, c) = (m % n, (m / n) % n, m / (n * n));
+                sil.inside(lo + step * Vec3::new(a as f32 + 0.5, b as f32 + 0.5, c as f32 + 0.5))
+            })
+        }
+    }
+}
+
+/// What one view says about a voxel.
+enum Verdict {
+    /// Its footprint shows only background: carve it.
+    Background,
+    /// Its footprint touches the silhouette.
+    Object,
+    /// Its footprint lies wholly inside the silhouette.
+    Inside,
+    /// The view does not see it whole (outside or across the image border,
+    /// or the camera inside its bounding sphere).
+    Unseen,
+}
+
+/// One view's verdict on a voxel (centre, bounding-sphere radius).
+#[inline]
+fn judge(p: &Proj, table: &SummedArea, centre: Vec3, radius: f32) -> Verdict {
+    let c = p.w2c.transform_point3(centre);
+    let depth = -c.z;
+    if depth - radius <= 1e-4 {
+        return Verdict::Unseen;
+    }
+    let px = p.cx + p.fx * c.x / depth;
+    let py = p.cy - p.fy * c.y / depth;
+    // Half-size of a square that contains the sphere's projection (for the
+    // off-axis case too: 1/(d − r) over-estimates the perspective growth).
+    let rx = p.fx * radius / (depth - radius) + 1.0;
+    let ry = p.fy * radius / (depth - radius) + 1.0;
+    let (x0, x1, y0, y1) = (px - rx, px + rx, py - ry, py + ry);
+    if x1 <= 0.0 || y1 <= 0.0 || x0 >= p.width || y0 >= p.height {
+        return Verdict::Unseen;
+    }
+    let clipped = x0 < 0.0 || y0 < 0.0 || x1 > p.width || y1 > p.height;
+    let xa = x0.max(0.0).floor() as u32;
+    let ya = y0.max(0.0).floor() as u32;
+    let xb = (x1.min(p.width).ceil() as u32).min(table.width);
+    let yb = (y1.min(p.height).ceil() as u32).min(table.height);
+    if xa >= xb || ya >= yb {
+        return Verdict::Unseen;
+    }
+    let count = table.count(xa, ya, xb, yb);
+    if count == (xb - xa) * (yb - ya) && !clipped {
+        Verdict::Inside
+    } else if count > 0 {
+        Verdict::Object
+    } else if clipped {
+        Verdict::Unseen
+    } else {
+        Verdict::Background
+    }
+}
+
+/// The object's cube: the bounding cube of a coarse ([`SEARCH_GRID`]³)
+/// conservative carve of `search`, so the g voxels of the bake span the
+/// object rather than the whole search box. `None` if nothing survives.
+pub fn object_cube(sil: &Silhouettes, search: &Aabb) -> Option<Aabb> {
+    let coarse = carve(sil, &search.cube(), SEARCH_GRID, VoxelTest::Footprint);
+    let b = coarse.occupied_bounds()?;
+    // A little margin keeps surface voxels off the grid border.
+    Some(b.cube().grown(0.5 * coarse.voxel))
+}
+
+/// Which texels of each quad's p×p patch hold matter (row-major per quad,
+/// quad after quad).
+///
+/// Quads lie on voxel faces, so part of a boundary voxel's face may be
+/// outside the visual hull; MobileNeRF shows such sub-voxel shape with
+/// empty (discarded) texels. A texel is empty when its point and every
+/// point behind it through its own voxel (along the inward normal, one
+/// sample per texel spacing) are outside the hull, and the voxel behind
+/// is empty — so looking through an empty texel shows what is behind the
+/// voxel, never the inside of a solid region (which has no quads).
+pub fn texel_occupancy(sil: &Silhouettes, grid: &Grid, quads: &[Quad], p: u32) -> Vec<bool> {
+    let p = p.max(2) as usize;
+    let mut occ = vec![true; quads.len() * p * p];
+    let step = 1.0 / (p - 1) as f32;
+    occ.par_chunks_mut(p * p)
+        .zip(quads.par_iter())
+        .for_each(|(cell, q)| {
+            let v = q.voxel.map(i64::from);
+            let behind = [
+                v[0] - q.normal.x as i64,
+                v[1] - q.normal.y as i64,
+                v[2] - q.normal.z as i64,
+            ];
+            if grid.occupied(behind[0], behind[1], behind[2]) {
+                return; // a solid region: keep every texel
+            }
+            let inward = -q.normal * grid.voxel;
+            for ty in 0..p {
+                for tx in 0..p {
+                    let x = q.point(tx as f32 * step, ty as f32 * step);
+                    // Samples at depth 0, 1/(p−1), …, 1 of the voxel.
+                    let matter = (0..p).any(|d| sil.inside(x + (d as f32 * step) * inward));
+                    cell[ty * p + tx] = matter;
+                }
+            }
+        });
+    occ
+}

@@ -1,0 +1,717 @@
+//! Many (g, p) bakes of many objects, measured, cached, written as the
+//! profiler's samples CSV.
+//!
+//! Each (object, g, p) is baked, encoded in the export layout (file bytes),
+//! rendered from the object's held-out test views and compared with the
+//! ground truth ([`crate::metrics`]). Bakes run a few at a time (each bake
+//! is itself parallel), largest first, with a progress bar. Every finished
+//! sample is stored in a cache folder under a key made of the capture's
+//! content hash, the object, g, p, the bake settings and [`BAKER_VERSION`]
+//! / [`MEASURE_VERSION`], so re-running a sweep only bakes what changed and
+//! an interrupted sweep resumes where it stopped.
+
+use std::collections::BTreeMap;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use anyhow::{bail, Context as _};
+use image::RgbaImage;
+use serde::{Deserialize, Serialize};
+
+use super::{BakeParams, BakeView, BAKER_VERSION};
+use crate::asset::Asset;
+use crate::camera::Camera;
+use crate::capture::Capture;
+use crate::metrics::{Lpips, Metrics};
+
+/// Version of the measurement (renderer + metrics use); part of the cache
+/// key like [`BAKER_VERSION`].
+pub const MEASURE_VERSION: u32 = 1;
+
+/// The header of the samples CSV.
+pub const CSV_HEADER: &str = "object,g,p,size_bytes,gpu_bytes,quads,ssim,psnr,lpips";
+
+/// One measured bake: a row of the samples CSV.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Sample {
+    /// Object name.
+    pub object: String,
+    /// Grid g (voxels per edge).
+    pub g: u32,
+    /// Patch p (texels per quad edge).
+    pub p: u32,
+    /// File bytes of the export (OBJ + PNG + mlp.json).
+    pub size_bytes: u64,
+    /// GPU-resident bytes (both atlases decoded as RGBA8).
+    pub gpu_bytes: u64,
+    /// Quads drawn.
+    pub quads: u64,
+    /// Mean SSIM over the test views.
+    pub ssim: f64,
+    /// Mean PSNR over the test views, dB.
+    pub psnr: f64,
+    /// Mean LPIPS over the test views (`None` without LPIPS weights).
+    pub lpips: Option<f64>,
+}
+
+impl Sample {
+    /// The CSV line (no newline).
+    pub fn csv_line(&self) -> String {
+        format!(
+            "{},{},{},{},{},{},{:.6},{:.4},{}",
+            self.object,
+            self.g,
+            self.p,
+            self.size_bytes,
+            self.gpu_bytes,
+            self.quads,
+            self.ssim,
+            self.psnr,
+            self.lpips.map_or(String::new(), |l| format!("{l:.6}"))
+        )
+    }
+}
+
+/// Writes samples as CSV (via a temporary file and a rename).
+pub fn write_csv(path: &Path, samples: &[Sample]) -> anyhow::Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create", dir.display()))?;
+    }
+    let mut text = String::from(CSV_HEADER);
+    text.push('\n');
+    for s in samples {
+        text.push_str(&s.csv_line());
+        text.push('\n');
+    }
+    let tmp = path.with_extension("csv.tmp");
+    std::fs::write(&tmp, text).with_context(|| format!("{}: cannot write", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("{}: cannot write", path.display()))
+}
+
+/// Reads a samples CSV; errors name the line and the field.
+pub fn read_csv(path: &Path) -> anyhow::Result<Vec<Sample>> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    let mut lines = text.lines().enumerate();
+    match lines.next() {
+        Some((_, h)) if h.trim() == CSV_HEADER => {}
+        _ => bail!("{}: line 1: header must be `{CSV_HEADER}`", path.display()),
+    }
+    let mut out = Vec::new();
+    for (i, line) in lines {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let n = i + 1;
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != 9 {
+            bail!(
+                "{}: line {n}: {} fields, expected 9",
+                path.display(),
+                f.len()
+            );
+        }
+        let bad = |name: &str| format!("{}: line {n}: bad {name} `{}`", path.display(), line);
+        out.push(Sample {
+            object: f[0].to_string(),
+            g: f[1].parse().with_context(|| bad("g"))?,
+            p: f[2].parse().with_context(|| bad("p"))?,
+            size_bytes: f[3].parse().with_context(|| bad("size_bytes"))?,
+            gpu_bytes: f[4].parse().with_context(|| bad("gpu_bytes"))?,
+            quads: f[5].parse().with_context(|| bad("quads"))?,
+            ssim: f[6].parse().with_context(|| bad("ssim"))?,
+            psnr: f[7].parse().with_context(|| bad("psnr"))?,
+            lpips: if f[8].is_empty() {
+                None
+            } else {
+                Some(f[8].parse().with_context(|| bad("lpips"))?)
+            },
+        });
+    }
+    Ok(out)
+}
+
+/// 64-bit FNV-1a, for content keys (not cryptographic; a collision only
+/// costs a stale cache entry).
+#[derive(Debug, Clone, Copy)]
+pub struct Fnv64(u64);
+
+impl Default for Fnv64 {
+    fn default() -> Self {
+        Self(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fnv64 {
+    /// Adds bytes.
+    pub fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 ^= u64::from(b);
+            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+
+    /// The hash so far.
+    pub fn finish(&self) -> u64 {
+        self.0
+    }
+}
+
+/// Content hash of files (their names relative to nothing, and bytes).
+pub fn hash_files(files: &[PathBuf]) -> anyhow::Result<u64> {
+    let mut h = Fnv64::default();
+    for f in files {
+        let bytes = std::fs::read(f).with_context(|| format!("{}: cannot read", f.display()))?;
+        h.write(&(bytes.len() as u64).to_le_bytes());
+        h.write(&bytes);
+    }
+    Ok(h.finish())
+}
+
+/// One owned training view: camera, image, optional (instance mask, label).
+pub type TrainView = (Camera, RgbaImage, Option<(image::GrayImage, u8)>);
+
+/// The training and test views of one object, owned.
+pub struct ObjectViews {
+    /// Object name (the CSV's `object`).
+    pub name: String,
+    /// Content hash of everything the views were read from.
+    pub content_hash: u64,
+    /// Training views: camera, image, optional (instance mask, label).
+    pub train: Vec<TrainView>,
+    /// Held-out views: camera and ground-truth image of the object alone.
+    pub test: Vec<(Camera, RgbaImage)>,
+    /// Where to look for the object (from `scene.json`), if known.
+    pub search_box: Option<super::Aabb>,
+}
+
+impl ObjectViews {
+    /// One object of a loaded capture. With `scene.json`, `object` names it
+    /// (optional when the scene has one object) and its instance mask value
+    /// selects its pixels; its bounds, grown by 10 %, are the search box.
+    /// Without, the capture is one object (alpha = silhouette) named after
+    /// its folder. Held-out images keep only the object's pixels.
+    pub fn from_capture(cap: &Capture, object: Option<&str>) -> anyhow::Result<Self> {
+        let folder = cap
+            .dir
+            .file_name()
+            .and_then(|n| n.to_str())
+            .unwrap_or("object")
+            .to_string();
+        let (name, label, search_box) = match (&cap.scene, object) {
+            (Some(scene), want) => {
+                let names: Vec<&str> = scene.objects.iter().map(|o| o.name.as_str()).collect();
+                let info = match want {
+                    Some(w) => scene.object(w).with_context(|| {
+                        format!(
+                            "{}: no object `{w}` in scene.json (it has: {})",
+                            cap.dir.display(),
+                            names.join(", ")
+                        )
+                    })?,
+                    None if scene.objects.len() == 1 => &scene.objects[0],
+                    None => bail!(
+                        "{}: the scene has {} objects ({}); pick one with --object NAME",
+                        cap.dir.display(),
+                        names.len(),
+                        names.join(", ")
+                    ),
+                };
+                let (lo, hi) = (
+                    info.bounds_min.map(|v| v as f32),
+                    info.bounds_max.map(|v| v as f32),
+                );
+                let (lo, hi) = (glam::Vec3::from_array(lo), glam::Vec3::from_array(hi));
+                let margin = 0.1 * (hi - lo).max_element() + 0.01;
+                let b = super::Aabb { min: lo, max: hi }.grown(margin);
+                (info.name.clone(), Some(info.mask_value), Some(b))
+            }
+            (None, Some(w)) if w != folder => bail!(
+                "{}: no scene.json, so the capture is one object (`{folder}`), not `{w}`",
+                cap.dir.display()
+            ),
+            (None, _) => (folder, None, None),
+        };
+        let mut h = Fnv64::default();
+        h.write(name.as_bytes());
+        let mut hash_frame = |cam: &Camera, img: &RgbaImage, mask: Option<&image::GrayImage>| {
+            h.write(format!("{cam:?}").as_bytes());
+            h.write(img.as_raw());
+            if let Some(m) = mask {
+                h.write(m.as_raw());
+            }
+        };
+        for f in cap.train.iter().chain(&cap.test) {
+            hash_frame(&f.camera, &f.image, f.mask.as_ref());
+        }
+        h.write(format!("{label:?} {search_box:?}").as_bytes());
+        let content_hash = h.finish();
+        let train = cap
+            .train
+            .iter()
+            .map(|f| {
+                let mask = match (label, &f.mask) {
+                    (Some(l), Some(m)) => Some((m.clone(), l)),
+                    _ => None,
+                };
+                (f.camera, f.image.clone(), mask)
+            })
+            .collect();
+        let test = cap
+            .test
+            .iter()
+            .map(|f| {
+                let mut img = f.image.clone();
+                if let (Some(l), Some(m)) = (label, &f.mask) {
+                    for (p, mv) in img.pixels_mut().zip(m.pixels()) {
+                        if mv.0[0] != l {
+                            p.0 = [0; 4];
+                        }
+                    }
+                }
+                (f.camera, img)
+            })
+            .collect();
+        Ok(Self {
+            name,
+            content_hash,
+            train,
+            test,
+            search_box,
+        })
+    }
+
+    /// The training views as the baker takes them.
+    pub fn bake_views(&self) -> Vec<BakeView<'_>> {
+        self.train
+            .iter()
+            .map(|(camera, image, mask)| BakeView {
+                camera: *camera,
+                image,
+                silhouette: match mask {
+                    Some((mask, label)) => super::Silhouette::Instance {
+                        mask,
+                        label: *label,
+                    },
+                    None => super::Silhouette::Alpha,
+                },
+            })
+            .collect()
+    }
+}
+
+/// Renders an asset from a camera.
+pub type RenderFn<'a> = dyn Fn(&Asset, &Camera) -> anyhow::Result<RgbaImage> + Sync + 'a;
+
+/// The renderer of `nerflex render` (fixed-point shader), as a [`RenderFn`].
+pub fn fixed_point_render(asset: &Asset, camera: &Camera) -> anyhow::Result<RgbaImage> {
+    let opts = crate::render::RenderOptions::default();
+    crate::render::try_render_scene(&[asset], camera, &opts)
+        .map(|(img, _)| img)
+        .map_err(|e| anyhow::anyhow!("the renderer rejected the camera: {e}"))
+}
+
+/// Image quality of a bake over the test views (means).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Quality {
+    /// Mean SSIM.
+    pub ssim: f64,
+    /// Mean PSNR, dB.
+    pub psnr: f64,
+    /// Mean LPIPS, if computed.
+    pub lpips: Option<f64>,
+}
+
+/// Renders every test view and compares it with the ground truth (both
+/// composited over white by the metrics); returns the means and, if asked,
+/// the renders.
+pub fn measure(
+    obj: &Asset,
+    test: &[(Camera, RgbaImage)],
+    render: &RenderFn<'_>,
+    lpips: Option<&Lpips>,
+    keep_renders: bool,
+) -> anyhow::Result<(Quality, Vec<RgbaImage>)> {
+    if test.is_empty() {
+        bail!("no test views to measure against");
+    }
+    let mut sums = (0.0, 0.0, 0.0);
+    let mut renders = Vec::new();
+    for (i, (cam, gt)) in test.iter().enumerate() {
+        let img = render(obj, cam).with_context(|| format!("rendering test view {i}"))?;
+        let s = Metrics::compare(&img, gt, lpips)
+            .with_context(|| format!("measuring test view {i}"))?;
+        sums.0 += s.ssim;
+        sums.1 += s.psnr.min(100.0); // identical images: cap inf at 100 dB
+        sums.2 += s.lpips.unwrap_or(0.0);
+        if keep_renders {
+            renders.push(img);
+        }
+    }
+    let n = test.len() as f64;
+    Ok((
+        Quality {
+            ssim: sums.0 / n,
+            psnr: sums.1 / n,
+            lpips: lpips.map(|_| sums.2 / n),
+        },
+        renders,
+    ))
+}
+
+/// Bakes, encodes and measures one configuration.
+pub fn bake_and_measure(
+    obj: &ObjectViews,
+    params: &BakeParams,
+    render: &RenderFn<'_>,
+    lpips: Option<&Lpips>,
+) -> anyhow::Result<Sample> {
+    let views = obj.bake_views();
+    let mut params = params.clone();
+    if params.search_box.is_none() {
+        params.search_box = obj.search_box;
+    }
+    let params = &params;
+    let baked = super::bake(&views, params).with_context(|| {
+        format!(
+            "baking {} at g={} p={}",
+            obj.name, params.grid, params.patch
+        )
+    })?;
+    drop(views);
+    let (quads, gpu_bytes) = (baked.quads.len() as u64, baked.gpu_bytes());
+    let asset = baked.into_asset()?;
+    let size_bytes = super::file_bytes(&asset)?;
+    let (q, _) = measure(&asset, &obj.test, render, lpips, false)?;
+    Ok(Sample {
+        object: obj.name.clone(),
+        g: params.grid,
+        p: params.patch,
+        size_bytes,
+        gpu_bytes,
+        quads,
+        ssim: q.ssim,
+        psnr: q.psnr,
+        lpips: q.lpips,
+    })
+}
+
+/// The cache of measured samples: one small JSON file per key.
+#[derive(Debug, Clone)]
+pub struct Cache {
+    dir: PathBuf,
+}
+
+#[derive(Serialize, Deserialize)]
+struct CacheEntry {
+    key: String,
+    sample: Sample,
+}
+
+impl Cache {
+    /// A cache in `dir` (created on first store).
+    pub fn new(dir: impl Into<PathBuf>) -> Self {
+        Self { dir: dir.into() }
+    }
+
+    /// The key of one sample: everything its numbers depend on.
+    pub fn key(obj: &ObjectViews, params: &BakeParams, with_lpips: bool) -> String {
+        let mut h = Fnv64::default();
+        h.write(&obj.content_hash.to_le_bytes());
+        h.write(obj.name.as_bytes());
+        h.write(format!("{params:?} {:?}", obj.search_box).as_bytes());
+        h.write(&BAKER_VERSION.to_le_bytes());
+        h.write(&MEASURE_VERSION.to_le_bytes());
+        h.write(&[u8::from(with_lpips)]);
+        h.write(&(obj.train.len() as u64).to_le_bytes());
+        h.write(&(obj.test.len() as u64).to_le_bytes());
+        format!(
+            "{}-g{}-p{}-{:016x}",
+            obj.name,
+            params.grid,
+            params.patch,
+            h.finish()
+        )
+    }
+
+    /// A stored sample, if any (unreadable entries count as absent).
+    pub fn get(&self, key: &str) -> Option<Sample> {
+        let text = std::fs::read_to_string(self.dir.join(format!("{key}.json"))).ok()?;
+        let e: CacheEntry = serde_json::from_str(&text).ok()?;
+        (e.key == key).then_some(e.sample)
+    }
+
+    /// Stores a sample (temporary file + rename).
+    pub fn put(&self, key: &str, sample: &Sample) -> anyhow::Result<()> {
+        std::fs::create_dir_all(&self.dir)
+            .with_context(|| format!("{}: cannot create", self.dir.display()))?;
+        let path = self.dir.join(format!("{key}.json"));
+        let tmp = self.dir.join(format!(".{key}.json.tmp"));
+        let text = serde_json::to_string(&CacheEntry {
+            key: key.to_string(),
+            sample: sample.clone(),
+        })?;
+        let mut f = std::fs::File::create(&tmp)
+            .with_context(|| format!("{}: cannot write", tmp.display()))?;
+        f.write_all(text.as_bytes())?;
+        drop(f);
+        std::fs::rename(&tmp, &path).with_context(|| format!("{}: cannot write", path.display()))
+    }
+}
+
+/// Sweep settings.
+pub struct SweepOptions<'a> {
+    /// Grids g.
+    pub grids: Vec<u32>,
+    /// Patches p.
+    pub patches: Vec<u32>,
+    /// Bake settings other than g and p.
+    pub base: BakeParams,
+    /// Bakes running at once (each is parallel inside).
+    pub jobs: usize,
+    /// Sample cache (`None`: always bake).
+    pub cache: Option<Cache>,
+    /// LPIPS network, if the weights are available.
+    pub lpips: Option<&'a Lpips>,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
+/// What a sweep did.
+#[derive(Debug, Clone, Default)]
+pub struct SweepReport {
+    /// Every sample, ordered by object, g, p.
+    pub samples: Vec<Sample>,
+    /// Samples taken from the cache.
+    pub reused: usize,
+    /// Samples baked now.
+    pub baked: usize,
+}
+
+/// Runs the sweep over `objects` × grids × patches.
+pub fn run(
+    objects: &[ObjectViews],
+    opts: &SweepOptions<'_>,
+    render: &RenderFn<'_>,
+) -> anyhow::Result<SweepReport> {
+    for (i, o) in objects.iter().enumerate() {
+        if o.name.is_empty() || o.name.contains([',', '\n', '"']) {
+            bail!("object name `{}` cannot go in a CSV field", o.name);
+        }
+        if objects[..i].iter().any(|p| p.name == o.name) {
+            bail!("object `{}` is given twice", o.name);
+        }
+    }
+    let mut todo: Vec<(usize, BakeParams, String)> = Vec::new();
+    let mut done: BTreeMap<(String, u32, u32), Sample> = BTreeMap::new();
+    let mut reused = 0;
+    for (oi, obj) in objects.iter().enumerate() {
+        for &g in &opts.grids {
+            for &p in &opts.patches {
+                let mut params = opts.base.clone();
+                params.grid = g;
+                params.patch = p;
+                let key = Cache::key(obj, &params, opts.lpips.is_some());
+                match opts.cache.as_ref().and_then(|c| c.get(&key)) {
+                    Some(s) => {
+                        reused += 1;
+                        done.insert((obj.name.clone(), g, p), s);
+                    }
+                    None => todo.push((oi, params, key)),
+                }
+            }
+        }
+    }
+    // Largest bakes first, so the last ones to finish are short.
+    todo.sort_by_key(|(_, p, _)| {
+        std::cmp::Reverse(u64::from(p.grid).pow(2) * u64::from(p.patch).pow(2))
+    });
+    let bar = if opts.progress {
+        let b = indicatif::ProgressBar::new(todo.len() as u64);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{elapsed_precise} [{bar:30}] {pos}/{len} bakes (eta {eta}) {msg}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    let baked = todo.len();
+    let queue = Mutex::new(todo.into_iter());
+    let results: Mutex<Vec<anyhow::Result<Sample>>> = Mutex::new(Vec::new());
+    std::thread::scope(|s| {
+        for _ in 0..opts.jobs.max(1) {
+            s.spawn(|| loop {
+                let next = queue.lock().map(|mut q| q.next()).ok().flatten();
+                let Some((oi, params, key)) = next else { break };
+                let obj = &objects[oi];
+                bar.set_message(format!("{} g={} p={}", obj.name, params.grid, params.patch));
+                let r = bake_and_measure(obj, &params, render, opts.lpips).and_then(|sample| {
+                    if let Some(c) = &opts.cache {
+                        c.put(&key, &sample)?;
+                    }
+                    Ok(sample)
+                });
+                bar.inc(1);
+                if let Ok(mut v) = results.lock() {
+                    v.push(r);
+                }
+            });
+        }
+    });
+    bar.finish_and_clear();
+    let results = results
+        .into_inner()
+        .map_err(|_| anyhow::anyhow!("a bake thread panicked"))?;
+    for r in results {
+        let s = r?;
+        done.insert((s.object.clone(), s.g, s.p), s);
+    }
+    // Objects in the order given, then g, then p.
+    let mut samples: Vec<Sample> = Vec::with_capacity(done.len());
+    for obj in objects {
+        samples.extend(
+            done.iter()
+                .filter(|((o, _, _), _)| o == &obj.name)
+                .map(|(_, s)| s.clone()),
+        );
+    }
+    Ok(SweepReport {
+        samples,
+        reused,
+        baked,
+    })
+}
+
+/// Draws one picture per object of `samples` into `dir`
+/// (`{object}.png`): GPU bytes, file bytes and SSIM against g, one line
+/// per p, g on a log₂ axis and sizes on a log₁₀ axis. Returns the files.
+pub fn plot_objects(samples: &[Sample], dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    use crate::plot::{Chart, LegendPosition, Scale, Series};
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    let mut objects: Vec<&str> = Vec::new();
+    for s in samples {
+        if !objects.contains(&s.object.as_str()) {
+            objects.push(&s.object);
+        }
+    }
+    let (w, h) = (360u32, 280u32);
+    let mut written = Vec::new();
+    for obj in objects {
+        let mine: Vec<&Sample> = samples.iter().filter(|s| s.object == obj).collect();
+        let mut ps: Vec<u32> = mine.iter().map(|s| s.p).collect();
+        ps.sort_unstable();
+        ps.dedup();
+        let series = |f: &dyn Fn(&Sample) -> f64| -> Vec<Series> {
+            ps.iter()
+                .map(|&p| {
+                    let mut pts: Vec<(f64, f64)> = mine
+                        .iter()
+                        .filter(|s| s.p == p)
+                        .map(|s| (f64::from(s.g), f(s)))
+                        .collect();
+                    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+                    Series::line_points(format!("p = {p}"), pts)
+                })
+                .collect()
+        };
+        let mib = 1024.0 * 1024.0;
+        let charts = [
+            (
+                "GPU size",
+                "GPU MiB (log)",
+                series(&|s| s.gpu_bytes as f64 / mib),
+                true,
+            ),
+            (
+                "file size",
+                "file MiB (log)",
+                series(&|s| s.size_bytes as f64 / mib),
+                true,
+            ),
+            ("quality", "SSIM", series(&|s| s.ssim), false),
+        ];
+        let mut sheet = tiny_skia::Pixmap::new(w * 3, h).context("picture size")?;
+        sheet.fill(tiny_skia::Color::WHITE);
+        for (i, (title, ylabel, lines, log)) in charts.into_iter().enumerate() {
+            let mut chart = Chart::new(format!("{obj}: {title}"))
+                .x_label("grid g")
+                .y_label(ylabel)
+                .x_log2()
+                .legend(if log {
+                    LegendPosition::TopLeft
+                } else {
+                    LegendPosition::BottomRight
+                });
+            if log {
+                chart = chart.y_scale(Scale::Log10);
+            }
+            for s in lines {
+                chart = chart.series(s);
+            }
+            let pm = chart.render(w, h)?;
+            sheet.draw_pixmap(
+                (i as u32 * w) as i32,
+                0,
+                pm.as_ref(),
+                &tiny_skia::PixmapPaint::default(),
+                tiny_skia::Transform::identity(),
+                None,
+            );
+        }
+        let path = dir.join(format!("{obj}.png"));
+        crate::plot::save_png(&sheet, &path)?;
+        written.push(path);
+    }
+    Ok(written)
+}
+
+/// Where a sweep's samples break "size grows and quality rises with g and
+/// with p": one line per pair of neighbouring configurations (next g at
+/// the same p, next p at the same g) whose size does not grow or whose SSIM
+/// falls by more than `ssim_tolerance`.
+pub fn monotonicity_report(samples: &[Sample], ssim_tolerance: f64) -> Vec<String> {
+    let mut out = Vec::new();
+    let find = |o: &str, g: u32, p: u32| {
+        samples
+            .iter()
+            .find(|s| s.object == o && s.g == g && s.p == p)
+    };
+    let mut gs: Vec<u32> = samples.iter().map(|s| s.g).collect();
+    let mut ps: Vec<u32> = samples.iter().map(|s| s.p).collect();
+    gs.sort_unstable();
+    gs.dedup();
+    ps.sort_unstable();
+    ps.dedup();
+    for a in samples {
+        let next_g = gs
+            .iter()
+            .find(|&&g| g > a.g)
+            .and_then(|&g| find(&a.object, g, a.p));
+        let next_p = ps
+            .iter()
+            .find(|&&p| p > a.p)
+            .and_then(|&p| find(&a.object, a.g, p));
+        for (what, b) in [("g", next_g), ("p", next_p)] {
+            let Some(b) = b else { continue };
+            let step = format!("{} ({}, {}) → ({}, {})", a.object, a.g, a.p, b.g, b.p);
+            if b.gpu_bytes <= a.gpu_bytes || b.size_bytes <= a.size_bytes {
+                out.push(format!(
+                    "{step}: size does not grow with {what} (GPU {} → {}, file {} → {})",
+                    a.gpu_bytes, b.gpu_bytes, a.size_bytes, b.size_bytes
+                ));
+            }
+            if b.ssim < a.ssim - ssim_tolerance {
+                out.push(format!(
+                    "{step}: SSIM falls with {what} ({:.4} → {:.4})",
+                    a.ssim, b.ssim
+                ));
+            }
+        }
+    }
+    out
+}

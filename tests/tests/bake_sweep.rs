@@ -1,0 +1,218 @@
+//! The sweep: samples CSV round trip and errors, cache reuse, ordering.
+
+use glam::Vec3;
+use image::{Rgba, RgbaImage};
+use nerflex_sim::bake::sweep::{self, Cache, ObjectViews, Sample, SweepOptions, CSV_HEADER};
+use nerflex_sim::bake::BakeParams;
+use nerflex_sim::camera::{Camera, Intrinsics};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// A capture of a flat-shaded ball (orange) at 64 px from 6 views.
+fn ball(name: &str, radius: f32) -> ObjectViews {
+    let k = Intrinsics::from_fov_x(0.69, 64, 64);
+    let cams: Vec<Camera> = (0..8)
+        .map(|i| {
+            Camera::orbit(
+                45.0 * i as f32,
+                if i % 2 == 0 { 30.0 } else { -20.0 },
+                3.5,
+                Vec3::ZERO,
+                k,
+            )
+        })
+        .collect();
+    let img = |c: &Camera| {
+        RgbaImage::from_fn(64, 64, |x, y| {
+            let (o, d) = c.ray(x as f32 + 0.5, y as f32 + 0.5);
+            let b = o.dot(d);
+            let disc = b * b - (o.length_squared() - radius * radius);
+            if disc >= 0.0 {
+                Rgba([230, 130, 40, 255])
+            } else {
+                Rgba([0, 0, 0, 0])
+            }
+        })
+    };
+    ObjectViews {
+        name: name.into(),
+        content_hash: (radius * 1000.0) as u64,
+        train: cams[..6].iter().map(|c| (*c, img(c), None)).collect(),
+        test: cams[6..].iter().map(|c| (*c, img(c))).collect(),
+        search_box: None,
+    }
+}
+
+#[test]
+fn csv_round_trips_and_bad_rows_name_their_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sub/samples.csv");
+    let samples = vec![
+        Sample {
+            object: "lego".into(),
+            g: 16,
+            p: 5,
+            size_bytes: 1234,
+            gpu_bytes: 5678,
+            quads: 90,
+            ssim: 0.75,
+            psnr: 17.25,
+            lpips: Some(0.25),
+        },
+        Sample {
+            object: "chair".into(),
+            g: 32,
+            p: 9,
+            size_bytes: 1,
+            gpu_bytes: 2,
+            quads: 3,
+            ssim: 0.5,
+            psnr: 10.0,
+            lpips: None,
+        },
+    ];
+    sweep::write_csv(&path, &samples).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.starts_with(CSV_HEADER));
+    assert!(
+        text.contains("chair,32,9,1,2,3,0.500000,10.0000,\n"),
+        "{text}"
+    );
+    assert_eq!(sweep::read_csv(&path).unwrap(), samples);
+
+    std::fs::write(
+        &path,
+        format!("{CSV_HEADER}\nlego,16,5,1,2,3,0.5,10,\nlego,x,5,1,2,3,0.5,10,\n"),
+    )
+    .unwrap();
+    let e = format!("{:#}", sweep::read_csv(&path).unwrap_err());
+    assert!(e.contains("line 3") && e.contains("bad g"), "{e}");
+    std::fs::write(&path, format!("{CSV_HEADER}\nlego,16,5\n")).unwrap();
+    let e = format!("{:#}", sweep::read_csv(&path).unwrap_err());
+    assert!(e.contains("line 2") && e.contains("3 fields"), "{e}");
+    std::fs::write(&path, "object,g\n").unwrap();
+    let e = format!("{:#}", sweep::read_csv(&path).unwrap_err());
+    assert!(e.contains("line 1") && e.contains("header"), "{e}");
+}
+
+#[test]
+fn sweep_reuses_unchanged_results_and_rebakes_changed_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    let objects = vec![ball("small", 0.5), ball("large", 0.7)];
+    let renders = AtomicUsize::new(0);
+    // A stand-in renderer (the measurement path is tested elsewhere): grey.
+    let render = |_: &nerflex_sim::asset::Asset, c: &Camera| {
+        renders.fetch_add(1, Ordering::Relaxed);
+        Ok(RgbaImage::from_pixel(
+            c.intrinsics.width,
+            c.intrinsics.height,
+            Rgba([128, 128, 128, 255]),
+        ))
+    };
+    let opts = SweepOptions {
+        grids: vec![8, 12],
+        patches: vec![3, 5],
+        base: BakeParams::new(0, 0),
+        jobs: 2,
+        cache: Some(Cache::new(dir.path().join("cache"))),
+        lpips: None,
+        progress: false,
+    };
+    let first = sweep::run(&objects, &opts, &render).unwrap();
+    assert_eq!((first.baked, first.reused, first.samples.len()), (8, 0, 8));
+    assert_eq!(renders.load(Ordering::Relaxed), 8 * 2);
+    // Ordered by object as given, then g, then p.
+    let order: Vec<(String, u32, u32)> = first
+        .samples
+        .iter()
+        .map(|s| (s.object.clone(), s.g, s.p))
+        .collect();
+    assert_eq!(order[0], ("small".into(), 8, 3));
+    assert_eq!(order[3], ("small".into(), 12, 5));
+    assert_eq!(order[4], ("large".into(), 8, 3));
+    for s in &first.samples {
+        assert!(s.quads > 0 && s.size_bytes > 0 && s.gpu_bytes > 0 && s.lpips.is_none());
+    }
+    // Everything cached: nothing baked, same numbers.
+    let again = sweep::run(&objects, &opts, &render).unwrap();
+    assert_eq!((again.baked, again.reused), (0, 8));
+    assert_eq!(again.samples, first.samples);
+    assert_eq!(renders.load(Ordering::Relaxed), 8 * 2);
+    // A changed capture (content hash) is baked again; the other is reused.
+    let mut changed = vec![ball("small", 0.5), ball("large", 0.7)];
+    changed[1].content_hash ^= 1;
+    let third = sweep::run(&changed, &opts, &render).unwrap();
+    assert_eq!((third.baked, third.reused), (4, 4));
+    // So is a changed bake setting.
+    let mut opts2 = SweepOptions {
+        base: BakeParams::new(0, 0),
+        ..opts
+    };
+    opts2.base.frontal_power = 2.0;
+    let fourth = sweep::run(&objects, &opts2, &render).unwrap();
+    assert_eq!((fourth.baked, fourth.reused), (8, 0));
+    // Size grows with g and with p.
+    let get = |g, p| {
+        first
+            .samples
+            .iter()
+            .find(|s| s.object == "large" && s.g == g && s.p == p)
+            .unwrap()
+            .clone()
+    };
+    assert!(get(12, 3).quads > get(8, 3).quads);
+    assert!(get(8, 5).gpu_bytes > get(8, 3).gpu_bytes);
+}
+
+#[test]
+fn sweep_rejects_duplicate_and_unwritable_names() {
+    let opts = SweepOptions {
+        grids: vec![8],
+        patches: vec![3],
+        base: BakeParams::new(0, 0),
+        jobs: 1,
+        cache: None,
+        lpips: None,
+        progress: false,
+    };
+    let render = |_: &nerflex_sim::asset::Asset, _: &Camera| Ok(RgbaImage::new(64, 64));
+    let e = sweep::run(&[ball("a", 0.5), ball("a", 0.6)], &opts, &render)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("`a` is given twice"), "{e}");
+    let e = sweep::run(&[ball("a,b", 0.5)], &opts, &render)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("CSV"), "{e}");
+}
+
+#[test]
+fn monotonicity_report_names_the_breaks() {
+    let s = |g, p, gpu, ssim| Sample {
+        object: "x".into(),
+        g,
+        p,
+        size_bytes: gpu,
+        gpu_bytes: gpu,
+        quads: 1,
+        ssim,
+        psnr: 0.0,
+        lpips: None,
+    };
+    let samples = vec![
+        s(16, 5, 100, 0.70),
+        s(16, 9, 200, 0.72),
+        s(32, 5, 300, 0.69),
+        s(32, 9, 250, 0.75),
+    ];
+    let r = sweep::monotonicity_report(&samples, 0.005);
+    assert_eq!(r.len(), 2, "{r:?}");
+    assert!(
+        r[0].contains("x (16, 5) → (32, 5): SSIM falls with g"),
+        "{r:?}"
+    );
+    assert!(
+        r[1].contains("x (32, 5) → (32, 9): size does not grow with p"),
+        "{r:?}"
+    );
+    assert!(sweep::monotonicity_report(&samples[..2], 0.0).is_empty());
+}
