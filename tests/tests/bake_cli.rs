@@ -41,6 +41,7 @@ fn args(capture: &Path) -> Args {
         object: vec![],
         grid: vec![12],
         patch: vec![5],
+        configs: vec![],
         out: None,
         measure: false,
         renders: None,
@@ -87,8 +88,9 @@ fn sweep_writes_csv_and_plots_then_reuses_the_cache() {
     let mut a = args(&cap);
     a.sweep = true;
     a.object = vec!["pawn".into(), "ball".into()];
-    a.grid = vec![8, 12];
-    a.patch = vec![3, 5];
+    a.grid = vec![];
+    a.patch = vec![];
+    a.configs = vec![(8, 3), (8, 5), (12, 3), (12, 5)];
     a.csv = tmp.path().join("out/samples.csv");
     a.cache = Some(tmp.path().join("cache"));
     a.plots = Some(tmp.path().join("plots"));

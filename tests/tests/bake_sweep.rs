@@ -109,8 +109,7 @@ fn sweep_reuses_unchanged_results_and_rebakes_changed_ones() {
         ))
     };
     let opts = SweepOptions {
-        grids: vec![8, 12],
-        patches: vec![3, 5],
+        configs: sweep::product(&[8, 12], &[3, 5]),
         base: BakeParams::new(0, 0),
         jobs: 2,
         cache: Some(Cache::new(dir.path().join("cache"))),
@@ -166,8 +165,7 @@ fn sweep_reuses_unchanged_results_and_rebakes_changed_ones() {
 #[test]
 fn sweep_rejects_duplicate_and_unwritable_names() {
     let opts = SweepOptions {
-        grids: vec![8],
-        patches: vec![3],
+        configs: vec![(8, 3)],
         base: BakeParams::new(0, 0),
         jobs: 1,
         cache: None,

@@ -461,12 +461,18 @@ impl Cache {
     }
 }
 
+/// Every (g, p) of `grids` × `patches`.
+pub fn product(grids: &[u32], patches: &[u32]) -> Vec<(u32, u32)> {
+    grids
+        .iter()
+        .flat_map(|&g| patches.iter().map(move |&p| (g, p)))
+        .collect()
+}
+
 /// Sweep settings.
 pub struct SweepOptions<'a> {
-    /// Grids g.
-    pub grids: Vec<u32>,
-    /// Patches p.
-    pub patches: Vec<u32>,
+    /// The (g, p) configurations to bake for every object (see [`product`]).
+    pub configs: Vec<(u32, u32)>,
     /// Bake settings other than g and p.
     pub base: BakeParams,
     /// Bakes running at once (each is parallel inside).
@@ -508,8 +514,8 @@ pub fn run(
     let mut done: BTreeMap<(String, u32, u32), Sample> = BTreeMap::new();
     let mut reused = 0;
     for (oi, obj) in objects.iter().enumerate() {
-        for &g in &opts.grids {
-            for &p in &opts.patches {
+        {
+            for &(g, p) in &opts.configs {
                 let mut params = opts.base.clone();
                 params.grid = g;
                 params.patch = p;

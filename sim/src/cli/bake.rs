@@ -26,11 +26,16 @@ pub struct Args {
     #[arg(long, value_delimiter = ',')]
     pub object: Vec<String>,
     /// Grid g (voxels per edge); with `--sweep`, a comma-separated list.
-    #[arg(long, value_delimiter = ',', required = true)]
+    #[arg(long, value_delimiter = ',', required_unless_present = "configs")]
     pub grid: Vec<u32>,
-    /// Patch p (texels per quad edge); with `--sweep`, a comma-separated list.
-    #[arg(long, value_delimiter = ',', required = true)]
+    /// Patch p (texels per quad edge); with `--sweep`, a comma-separated list
+    /// (the sweep bakes every g with every p).
+    #[arg(long, value_delimiter = ',', required_unless_present = "configs")]
     pub patch: Vec<u32>,
+    /// With `--sweep`, instead of `--grid` × `--patch`: exactly these
+    /// configurations, `G:P` comma-separated (e.g. the profiler's samples).
+    #[arg(long, value_delimiter = ',', value_parser = parse_config, requires = "sweep")]
+    pub configs: Vec<(u32, u32)>,
     /// Output folder of the asset (MobileNeRF export layout).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -86,6 +91,15 @@ pub struct Args {
     /// left out if absent).
     #[arg(long)]
     pub lpips_weights: Option<PathBuf>,
+}
+
+fn parse_config(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("`{s}` is not a configuration G:P (e.g. 128:17)");
+    let (g, p) = s.split_once(':').ok_or_else(bad)?;
+    Ok((
+        g.trim().parse().map_err(|_| bad())?,
+        p.trim().parse().map_err(|_| bad())?,
+    ))
 }
 
 fn parse_geometry(s: &str) -> Result<Geometry, String> {
@@ -272,8 +286,11 @@ fn run_sweep(args: &Args) -> anyhow::Result<()> {
         .clone()
         .unwrap_or_else(|| PathBuf::from(DEFAULT_CACHE));
     let opts = SweepOptions {
-        grids: args.grid.clone(),
-        patches: args.patch.clone(),
+        configs: if args.configs.is_empty() {
+            sweep::product(&args.grid, &args.patch)
+        } else {
+            args.configs.clone()
+        },
         base: base_params(args),
         jobs: args.jobs,
         cache: (!args.no_cache).then(|| Cache::new(&cache_dir)),
