@@ -13,7 +13,6 @@
 //!   `mlp source=synthetic`.
 //! - `PROFILES`: the five fitted profiles of
 //!   `examples/scenes/five_objects_profile.json`.
-//! - `TABLES` (interim): their configuration tables evaluated on the host.
 //!
 //! The including build script must declare `mod workload` (`src/workload.rs`).
 
@@ -45,7 +44,6 @@ pub fn generate(firmware: &Path) -> Result<String, BoxError> {
     )?;
     mlp_source(firmware, &mut src)?;
     profiles_source(firmware, &mut src)?;
-    host_tables_source(firmware, &mut src)?;
     Ok(src)
 }
 
@@ -214,7 +212,8 @@ fn profiles_source(manifest: &Path, src: &mut String) -> Result<(), BoxError> {
                 None => 3,
                 Some(x) => x
                     .as_u64()
-                    .ok_or_else(|| at(".profile.g_power: not an integer"))?,
+                    .filter(|g| *g == 2 || *g == 3)
+                    .ok_or_else(|| at(".profile.g_power: not 2 or 3"))?,
             };
             Ok(format!(
                 "FitParams {{ k: {:?}, a: {:?}, b: {:?}, m: {:?}, g_power: {power} }}",
@@ -251,67 +250,6 @@ fn profiles_source(manifest: &Path, src: &mut String) -> Result<(), BoxError> {
         writeln!(src, "        grids: {},", list("g", workload::GRIDS)?)?;
         writeln!(src, "        patches: {},", list("p", workload::PATCHES)?)?;
         writeln!(src, "    }},")?;
-    }
-    writeln!(src, "];")?;
-    Ok(())
-}
-
-/// Interim, until `nerflex_core::profiler` lands: the configuration tables
-/// evaluated on the host in `f64` exactly as `nerflex_sim::scene_file` does
-/// (size rounded up to bytes, quality clamped to [0, 1]): emits `TABLES`.
-fn host_tables_source(manifest: &Path, src: &mut String) -> Result<(), BoxError> {
-    let path = manifest.join("../../examples/scenes/five_objects_profile.json");
-    let text = fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let v: serde_json::Value = serde_json::from_str(&text)?;
-    let objects = v
-        .get("objects")
-        .and_then(|o| o.as_array())
-        .ok_or("objects")?;
-    writeln!(
-        src,
-        "/// Interim: tables evaluated on the host at build time (f64)."
-    )?;
-    writeln!(
-        src,
-        "pub const TABLES: [[Config; {}]; {}] = [",
-        workload::CONFIGS,
-        workload::OBJECTS
-    )?;
-    for o in objects {
-        let p = o.get("profile").ok_or("profile")?;
-        let num = |c: &str, k: &str| {
-            p.get(c)
-                .and_then(|c| c.get(k))
-                .and_then(|x| x.as_f64())
-                .ok_or("param")
-        };
-        let ints = |k: &str| -> Result<Vec<f64>, BoxError> {
-            Ok(p.get(k)
-                .and_then(|x| x.as_array())
-                .ok_or("list")?
-                .iter()
-                .filter_map(|x| x.as_f64())
-                .collect())
-        };
-        writeln!(src, "    [")?;
-        for g in ints("g")? {
-            for pp in ints("p")? {
-                let s = num("size", "k")?
-                    * (g + num("size", "a")?).powi(3)
-                    * (pp + num("size", "b")?).powi(2)
-                    + num("size", "m")?;
-                let q = num("quality", "m")?
-                    - num("quality", "k")?
-                        / ((g + num("quality", "a")?).powi(3)
-                            * (pp + num("quality", "b")?).powi(2));
-                let size =
-                    nerflex_core::units::Bytes::from_f64_ceil(s).map_err(|e| format!("{e}"))?;
-                let q = nerflex_core::units::QualityQ::from_f64(q.clamp(0.0, 1.0))
-                    .map_err(|e| format!("{e}"))?;
-                writeln!(src, "        config({}, {}),", size.0, q.raw())?;
-            }
-        }
-        writeln!(src, "    ],")?;
     }
     writeln!(src, "];")?;
     Ok(())

@@ -3,8 +3,8 @@
 //! `tests/tests/firmware_m4.rs` parses and compares with the host build.
 //!
 //! 1. the five objects' configuration tables (5 × 45 configurations),
-//!    evaluated from their fitted profiles on the host at build time (until
-//!    the fixed-point `nerflex_core::profiler` lands and runs here);
+//!    evaluated on board from their fitted profiles by the fixed-point
+//!    `nerflex_core::profiler` (the build script embeds only the parameters);
 //! 2. the exact MCK plan for the iPhone 13 (240 MB) and Pixel 4 (150 MB)
 //!    budgets in 0.1 MB units, with `Solver<5, 45, 2400>` in a static;
 //! 3. a 16 × 16 tile of texels shaded by the fixed-point lego MLP
@@ -30,6 +30,7 @@ use cortex_m as _; // critical-section implementation
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use cortex_m_semihosting::{debug, hprintln, nr, syscall1};
 use nerflex_core::mck::{Config, MckError, Solver};
+use nerflex_core::profiler::{ConfigSpace, Family, Params, Profile, ProfileError};
 use nerflex_core::shader::FixedMlp;
 use nerflex_core::units::{Bytes, QualityQ};
 use panic_semihosting as _;
@@ -37,9 +38,7 @@ use workload::{Device, ObjectProfile, CONFIGS, OBJECTS, TILE_H, TILE_W, UNIT, UN
 
 #[allow(clippy::all, dead_code)]
 mod generated {
-    use super::config;
     use crate::workload::{FitParams, ObjectProfile};
-    use nerflex_core::mck::Config;
     use nerflex_core::shader::{FixedLayer, FixedMlp};
     include!(concat!(env!("OUT_DIR"), "/generated.rs"));
 }
@@ -69,6 +68,37 @@ struct Plan {
 }
 
 #[inline(never)]
+/// The fitted curve in the core's parameter type.
+fn params(f: &workload::FitParams) -> Params {
+    // The build script accepts only the two families' powers (2 and 3).
+    let family = if f.g_power == 2 {
+        Family::Surface
+    } else {
+        Family::Volume
+    };
+    Params {
+        k: f.k,
+        a: f.a,
+        b: f.b,
+        m: f.m,
+        family,
+    }
+}
+
+/// Evaluates every object's fitted profile over its g × p grid (g-major, as
+/// the host's scene file does) into the solver's tables, in fixed point.
+fn evaluate_tables(
+    profiles: &[ObjectProfile; OBJECTS],
+    out: &mut [[Config; CONFIGS]; OBJECTS],
+) -> Result<(), ProfileError> {
+    for (table, p) in out.iter_mut().zip(profiles) {
+        let profile = Profile::from_params(&params(&p.size), &params(&p.quality))?;
+        let space = ConfigSpace::new(&p.grids, &p.patches)?;
+        profile.fill_table(&space, table)?;
+    }
+    Ok(())
+}
+
 fn plan(
     solver: &mut PaperSolver,
     tables: &[[Config; CONFIGS]; OBJECTS],
@@ -129,6 +159,7 @@ fn main() -> ! {
     // cortex-m-rt turns these into `&'static mut`, placed in .bss / .data.
     static mut SOLVER: PaperSolver = PaperSolver::new();
     static mut PIXEL_BUF: [[u8; 3]; PIXELS] = [[0; 3]; PIXELS];
+    static mut TABLES: [[Config; CONFIGS]; OBJECTS] = [[config(0, 0); CONFIGS]; OBJECTS];
 
     if cmdline_has(b"panic") {
         panic!("deliberate panic (semihosting command line `panic`)");
@@ -144,8 +175,11 @@ fn main() -> ! {
     );
 
     // 1. Configuration tables.
-    let tables: &[[Config; CONFIGS]; OBJECTS] = &generated::TABLES;
     let profiles: &[ObjectProfile; OBJECTS] = &generated::PROFILES;
+    if let Err(e) = evaluate_tables(profiles, TABLES) {
+        fail("profile", &e);
+    }
+    let tables: &[[Config; CONFIGS]; OBJECTS] = TABLES;
     for (i, (t, p)) in tables.iter().zip(profiles).enumerate() {
         let (min, max) = t.iter().fold((u64::MAX, 0), |(lo, hi), c| {
             (lo.min(c.size.0), hi.max(c.size.0))
