@@ -376,7 +376,8 @@ impl Device {
 
     /// Whether `data` bytes are over the soft limit (`false` without one).
     pub fn over_soft_limit(&self, data: Bytes) -> bool {
-        self.soft_limit_bytes().is_some_and(|(limit, _)| data > limit)
+        self.soft_limit_bytes()
+            .is_some_and(|(limit, _)| data > limit)
     }
 
     /// Whether a scene of `data` bytes (its baked files) loads: above the

@@ -129,10 +129,12 @@ pub fn simulate(
             options.period_s
         );
     }
-    let data: u64 = items.iter().fold(0u64, |s, i| s.saturating_add(i.file_bytes));
-    let resident = items
+    let data: u64 = items
         .iter()
-        .fold(device.gbuffer_bytes().0, |s, i| s.saturating_add(i.resident_bytes));
+        .fold(0u64, |s, i| s.saturating_add(i.file_bytes));
+    let resident = items.iter().fold(device.gbuffer_bytes().0, |s, i| {
+        s.saturating_add(i.resident_bytes)
+    });
     let refresh_s = 1.0 / device.display.refresh_hz;
     let mut sim = Simulation {
         device: device.name.clone(),
@@ -216,7 +218,11 @@ pub fn simulate(
     }
     let n = sim.frames.len().max(1) as f64;
     sim.mean_fps = sim.frames.iter().map(|f| f.fps).sum::<f64>() / n;
-    sim.min_fps = sim.frames.iter().map(|f| f.fps).fold(f64::INFINITY, f64::min);
+    sim.min_fps = sim
+        .frames
+        .iter()
+        .map(|f| f.fps)
+        .fold(f64::INFINITY, f64::min);
     if !sim.min_fps.is_finite() {
         sim.min_fps = 0.0;
     }
@@ -290,7 +296,10 @@ mod tests {
         let stalled: Vec<_> = sim.frames.iter().filter(|f| f.stall_s > 0.0).collect();
         let total_stall: f64 = stalled.iter().map(|f| f.stall_s).sum();
         let expected = 5.0 * 100e6 / (d.decode_mb_per_s() * 1e6);
-        assert!((total_stall - expected).abs() < 1e-9, "{total_stall} vs {expected}");
+        assert!(
+            (total_stall - expected).abs() < 1e-9,
+            "{total_stall} vs {expected}"
+        );
         let last = sim.frames.last().unwrap();
         assert_eq!(last.objects_loaded, 5);
         for f in &stalled {
