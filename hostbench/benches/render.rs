@@ -1,7 +1,58 @@
-//! Benchmarks: render (under construction).
-use criterion::{criterion_group, criterion_main, Criterion};
+//! Full 800×800 frames of the real drums shape at a few turntable angles:
+//! fixed-point and `f32` shading, and the coverage-only pass the device
+//! simulator uses. Tiles run in parallel on all cores (rayon); a
+//! single-thread pool gives the one-core figure.
+//!
+//! Needs `../shared/data` (skips otherwise).
+//! `cargo bench -p nerflex-hostbench --bench render`
 
-fn bench(_c: &mut Criterion) {}
+use criterion::{criterion_group, criterion_main, Criterion};
+use nerflex_core::raster::glam::Vec3;
+use nerflex_sim::asset::Asset;
+use nerflex_sim::camera::{Camera, Intrinsics};
+use nerflex_sim::render::{coverage, rayon, render, RenderOptions};
+use std::hint::black_box;
+
+const ANGLES: [f32; 3] = [0.0, 30.0, 120.0];
+
+fn camera(angle: f32) -> Camera {
+    let k = Intrinsics::from_fov_x(39.6f32.to_radians(), 800, 800);
+    Camera::orbit(angle, 30.0, 4.031, Vec3::ZERO, k)
+}
+
+fn bench(c: &mut Criterion) {
+    let Some(data) = nerflex_sim::data::require_data("render bench") else {
+        return;
+    };
+    let asset = Asset::load(&data.join("mobilenerf/drums")).expect("drums asset");
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("pool");
+    let mut g = c.benchmark_group("render_drums_800");
+    g.sample_size(20);
+    for angle in ANGLES {
+        let cam = camera(angle);
+        let (_, s) = render(&asset, &cam, &RenderOptions::default());
+        println!(
+            "angle {angle}°: quads drawn {} of {}, visible {}, pixels shaded {}, fragments {}, discarded {}",
+            s.quads_drawn, s.quads_total, s.quads_visible, s.pixels_shaded, s.tiles.fragments, s.tiles.discarded
+        );
+        g.bench_function(format!("fixed/{angle}"), |b| {
+            b.iter(|| black_box(render(&asset, &cam, &RenderOptions::default())))
+        });
+        g.bench_function(format!("f32/{angle}"), |b| {
+            b.iter(|| black_box(render(&asset, &cam, &RenderOptions { float: true })))
+        });
+        g.bench_function(format!("fixed_one_core/{angle}"), |b| {
+            b.iter(|| one.install(|| black_box(render(&asset, &cam, &RenderOptions::default()))))
+        });
+        g.bench_function(format!("coverage/{angle}"), |b| {
+            b.iter(|| black_box(coverage(&asset, &cam)))
+        });
+    }
+    g.finish();
+}
 
 criterion_group!(benches, bench);
 criterion_main!(benches);

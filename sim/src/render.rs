@@ -1,1 +1,310 @@
-//! (module under construction)
+//! The host renderer: the core's tile rasterizer and fixed-point shader,
+//! tiles in parallel (rayon), into an `RgbaImage` composited over white.
+//!
+//! Per frame: every quad is projected once ([`ScreenQuad::project`]) and
+//! binned to the 32 × 32 tiles its box touches; each tile then runs the same
+//! [`TileRenderer`] a microcontroller runs (drawing its quads in asset
+//! order, so results equal [`nerflex_core::raster::render_frame`]'s) and
+//! shades its covered pixels once. `--float` shades the same G-buffer with
+//! the `f32` MLP ([`shade_f32`]) instead.
+//!
+//! Output: `rgb` composited over white (MobileNeRF's viewer convention;
+//! coverage is binary, so a pixel is either the MLP's colour or white) and
+//! `alpha` = coverage (255 or 0).
+
+use crate::asset::Asset;
+use crate::camera::Camera;
+use image::{Rgba, RgbaImage};
+use nerflex_core::raster::{
+    Part, RasterError, Sample, ScreenQuad, TileRenderer, TileStats, View, BACKGROUND,
+};
+use nerflex_core::shader::{shade_f32, MlpWeights};
+/// Re-exported: renders run on the current rayon pool, so a caller can
+/// pick the thread count with `rayon::ThreadPool::install` (e.g. one core).
+pub use rayon;
+use rayon::prelude::*;
+use std::time::{Duration, Instant};
+
+/// Tile side in pixels.
+pub const TILE: usize = 32;
+
+/// How to render.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RenderOptions {
+    /// Shade with the `f32` MLP instead of the fixed-point one.
+    pub float: bool,
+}
+
+/// What a frame cost.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RenderStats {
+    /// Quads (and lone triangles) in the scene.
+    pub quads_total: u32,
+    /// Quads with at least one triangle projected onto the image.
+    pub quads_drawn: u32,
+    /// Distinct quads owning at least one final pixel.
+    pub quads_visible: u32,
+    /// Covered pixels, each shaded exactly once.
+    pub pixels_shaded: u64,
+    /// Per-tile raster counters, summed.
+    pub tiles: TileStats,
+    /// Wall time of projection, rasterization and shading.
+    pub time: Duration,
+    /// Set when the camera was rejected and nothing was drawn.
+    pub camera_error: Option<RasterError>,
+}
+
+/// The core rasterizer's view of a camera.
+pub fn view_of(camera: &Camera) -> Result<View, RasterError> {
+    let k = &camera.intrinsics;
+    View::new(camera.c2w, k.fx, k.fy, k.cx, k.cy, k.width, k.height)
+}
+
+/// One part per shape of each asset, with its MLP's float weights.
+fn parts<'a>(assets: &[&'a Asset]) -> (Vec<Part<'a>>, Vec<&'a MlpWeights>) {
+    let mut parts = Vec::new();
+    let mut weights = Vec::new();
+    for a in assets {
+        for s in &a.shapes {
+            parts.push(Part {
+                quads: &s.quads,
+                atlas: s.atlas.atlas(),
+                mlp: a.mlp.fixed(),
+            });
+            weights.push(a.mlp.weights());
+        }
+    }
+    (parts, weights)
+}
+
+/// Result of one tile: its pixels (RGBA, row-major), counters and the ids
+/// of the quads it shows.
+struct TileOut {
+    rect: (u32, u32, u32, u32),
+    pixels: Vec<[u8; 4]>,
+    covered: u64,
+    stats: TileStats,
+    visible: Vec<u32>,
+}
+
+/// Projects, bins and rasterizes; `shade` turns each finished tile into its output.
+fn run_tiles<F>(
+    view: &View,
+    parts: &[Part],
+    shade: F,
+) -> Result<(Vec<TileOut>, u32, u32), RasterError>
+where
+    F: Fn(&TileRenderer<TILE, TILE>) -> Vec<[u8; 4]> + Sync,
+{
+    // Flatten (part, quad) with frame-wide ids.
+    let mut list: Vec<(u16, &nerflex_core::raster::Quad)> = Vec::new();
+    for (pi, p) in parts.iter().enumerate() {
+        let pi = u16::try_from(pi).map_err(|_| RasterError::TooManyQuads)?;
+        list.extend(p.quads.iter().map(|q| (pi, q)));
+    }
+    let total = u32::try_from(list.len()).map_err(|_| RasterError::TooManyQuads)?;
+    let projected: Vec<ScreenQuad> = list
+        .par_iter()
+        .enumerate()
+        .filter_map(|(id, (pi, q))| ScreenQuad::project(view, q, *pi, id as u32))
+        .collect();
+    let drawn = projected.len() as u32;
+    let t = TILE as u32;
+    let (tx, ty) = (view.width().div_ceil(t), view.height().div_ceil(t));
+    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tx * ty) as usize];
+    for (i, sq) in projected.iter().enumerate() {
+        let [x0, y0, x1, y1] = sq.bbox;
+        for by in y0 / t..=y1 / t {
+            for bx in x0 / t..=x1 / t {
+                bins[(by * tx + bx) as usize].push(i as u32);
+            }
+        }
+    }
+    // One task per row of tiles, each with one renderer (16 KiB) reused
+    // across its tiles: enough tasks to balance, few set-ups.
+    let tiles: Vec<TileOut> = bins
+        .par_chunks(tx as usize)
+        .enumerate()
+        .flat_map_iter(|(row, bins_row)| {
+            let mut tile = Box::new(TileRenderer::<TILE, TILE>::new());
+            let mut out = Vec::with_capacity(bins_row.len());
+            for (col, bin) in bins_row.iter().enumerate() {
+                tile.begin(view, col as u32 * t, row as u32 * t);
+                if bin.is_empty() {
+                    // Nothing touches this tile: background, no per-pixel work.
+                    let (_, _, w, h) = tile.rect();
+                    out.push(TileOut {
+                        rect: tile.rect(),
+                        pixels: vec![px(None); (w * h) as usize],
+                        covered: 0,
+                        stats: TileStats::default(),
+                        visible: Vec::new(),
+                    });
+                    continue;
+                }
+                for &i in bin {
+                    let sq = &projected[i as usize];
+                    if let Some(p) = parts.get(sq.part as usize) {
+                        tile.draw(sq, &p.atlas);
+                    }
+                }
+                let mut visible = Vec::new();
+                tile.for_each_sample(|_, _, s| {
+                    if let Some(s) = s {
+                        visible.push(s.quad);
+                    }
+                });
+                out.push(TileOut {
+                    rect: tile.rect(),
+                    pixels: shade(&tile),
+                    covered: u64::from(tile.covered()),
+                    stats: tile.stats(),
+                    visible,
+                });
+            }
+            out
+        })
+        .collect();
+    Ok((tiles, total, drawn))
+}
+
+fn px(rgb: Option<[u8; 3]>) -> [u8; 4] {
+    match rgb {
+        Some([r, g, b]) => [r, g, b, 255],
+        None => [BACKGROUND[0], BACKGROUND[1], BACKGROUND[2], 0],
+    }
+}
+
+/// Renders several assets (objects) together, each with its own MLP.
+pub fn try_render_scene(
+    assets: &[&Asset],
+    camera: &Camera,
+    opts: &RenderOptions,
+) -> Result<(RgbaImage, RenderStats), RasterError> {
+    let start = Instant::now();
+    let view = view_of(camera)?;
+    let (parts, weights) = parts(assets);
+    let shade = |tile: &TileRenderer<TILE, TILE>| -> Vec<[u8; 4]> {
+        let (_, _, w, h) = tile.rect();
+        let mut out = Vec::with_capacity((w * h) as usize);
+        if opts.float {
+            tile.for_each_sample(|x, y, s: Option<Sample>| {
+                let rgb = s.and_then(|s| {
+                    let part = parts.get(s.part as usize)?;
+                    let w = weights.get(s.part as usize)?;
+                    let (f0, f1) = part
+                        .atlas
+                        .texel(u32::from(s.texel[0]), u32::from(s.texel[1]));
+                    Some(shade_f32(w, f0, f1, view.pixel_dir_f32(x, y)))
+                });
+                out.push(px(rgb));
+            });
+        } else {
+            for y in 0..h {
+                for x in 0..w {
+                    out.push(px(tile.shade_pixel(&view, &parts, x, y)));
+                }
+            }
+        }
+        out
+    };
+    let (tiles, total, drawn) = run_tiles(&view, &parts, shade)?;
+    let mut img = RgbaImage::new(view.width(), view.height());
+    let mut stats = RenderStats {
+        quads_total: total,
+        quads_drawn: drawn,
+        ..Default::default()
+    };
+    let mut seen = vec![0u32; (total as usize).div_ceil(32)];
+    for t in &tiles {
+        let (x0, y0, w, _) = t.rect;
+        for (i, p) in t.pixels.iter().enumerate() {
+            let (x, y) = (x0 + i as u32 % w, y0 + i as u32 / w);
+            img.put_pixel(x, y, Rgba(*p));
+        }
+        stats.pixels_shaded += t.covered;
+        stats.tiles.add(&t.stats);
+        for &q in &t.visible {
+            if let Some(word) = seen.get_mut((q / 32) as usize) {
+                *word |= 1 << (q % 32);
+            }
+        }
+    }
+    stats.quads_visible = seen.iter().map(|w| w.count_ones()).sum();
+    stats.time = start.elapsed();
+    Ok((img, stats))
+}
+
+/// Renders one asset (see [`try_render_scene`]). A camera the rasterizer
+/// rejects (image side 0 or above 16384, non-positive focal length, a
+/// non-invertible pose) draws nothing: the image is background and
+/// `stats.camera_error` says why.
+pub fn render(asset: &Asset, camera: &Camera, opts: &RenderOptions) -> (RgbaImage, RenderStats) {
+    render_scene(&[asset], camera, opts)
+}
+
+/// [`render`] for several objects.
+pub fn render_scene(
+    assets: &[&Asset],
+    camera: &Camera,
+    opts: &RenderOptions,
+) -> (RgbaImage, RenderStats) {
+    match try_render_scene(assets, camera, opts) {
+        Ok(r) => r,
+        Err(e) => {
+            let k = &camera.intrinsics;
+            let (w, h) = (k.width.min(16384), k.height.min(16384));
+            let img = RgbaImage::from_pixel(w, h, Rgba(px(None)));
+            let stats = RenderStats {
+                camera_error: Some(e),
+                ..Default::default()
+            };
+            (img, stats)
+        }
+    }
+}
+
+/// Coverage of a view without shading: what the device simulator needs
+/// per frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CoverageStats {
+    /// Quads in the scene.
+    pub quads_total: u32,
+    /// Quads with at least one triangle projected onto the image.
+    pub quads_drawn: u32,
+    /// Distinct quads owning at least one final pixel.
+    pub quads_visible: u32,
+    /// Covered pixels (= pixels shaded by the deferred renderer).
+    pub pixels_covered: u64,
+    /// Per-tile raster counters, summed.
+    pub tiles: TileStats,
+}
+
+/// Coverage-only pass over several objects (parallel tiles, no shading).
+pub fn coverage_scene(assets: &[&Asset], camera: &Camera) -> Result<CoverageStats, RasterError> {
+    let view = view_of(camera)?;
+    let (parts, _) = parts(assets);
+    let (tiles, total, drawn) = run_tiles(&view, &parts, |_| Vec::new())?;
+    let mut out = CoverageStats {
+        quads_total: total,
+        quads_drawn: drawn,
+        ..Default::default()
+    };
+    let mut seen = vec![0u32; (total as usize).div_ceil(32)];
+    for t in &tiles {
+        out.pixels_covered += t.covered;
+        out.tiles.add(&t.stats);
+        for &q in &t.visible {
+            if let Some(word) = seen.get_mut((q / 32) as usize) {
+                *word |= 1 << (q % 32);
+            }
+        }
+    }
+    out.quads_visible = seen.iter().map(|w| w.count_ones()).sum();
+    Ok(out)
+}
+
+/// [`coverage_scene`] for one asset.
+pub fn coverage(asset: &Asset, camera: &Camera) -> Result<CoverageStats, RasterError> {
+    coverage_scene(&[asset], camera)
+}

@@ -1,0 +1,348 @@
+use super::*;
+use crate::shader::{FixedMlp, MlpWeights};
+use embedded_graphics_core::geometry::OriginDimensions;
+use embedded_graphics_core::Pixel;
+use glam::Vec3;
+use std::vec;
+use std::vec::Vec;
+
+/// Camera on +y... at `eye` looking at the origin, z up, square image.
+fn view(eye: Vec3, size: u32, fov_deg: f32) -> View {
+    let back = eye.normalize();
+    let right = Vec3::Z.cross(back).normalize();
+    let up = back.cross(right);
+    let c2w = Mat4::from_cols(
+        right.extend(0.0),
+        up.extend(0.0),
+        back.extend(0.0),
+        eye.extend(1.0),
+    );
+    let f = 0.5 * size as f32 / (0.5 * fov_deg.to_radians()).tan();
+    View::new(c2w, f, f, 0.5 * size as f32, 0.5 * size as f32, size, size).unwrap()
+}
+
+/// Quad in the plane y = `y`, x ∈ [x0, x1], z ∈ [z0, z1], mapping the whole
+/// `n × n` atlas (texel centres at the corners, as the export does).
+fn quad(y: f32, x0: f32, x1: f32, z0: f32, z1: f32, n: u32) -> Quad {
+    let t0 = 0.5;
+    let t1 = n as f32 - 0.5;
+    // Corner order of the export: 0 = (0,0), 1 = (0,1), 2 = (1,0), 3 = (1,1) in (x, y) texels.
+    Quad::new([
+        Vertex::at_texel([x0, y, z1], t0, t0, n, n),
+        Vertex::at_texel([x0, y, z0], t0, t1, n, n),
+        Vertex::at_texel([x1, y, z1], t1, t0, n, n),
+        Vertex::at_texel([x1, y, z0], t1, t1, n, n),
+    ])
+}
+
+/// An `n × n` atlas: feat0 = (x+1, y+1, 0, 0) so the texel is readable back.
+fn atlas_pages(n: u32, empty: impl Fn(u32, u32) -> bool) -> (Vec<u8>, Vec<u8>) {
+    let mut f0 = vec![0u8; (n * n * 4) as usize];
+    let f1 = vec![128u8; (n * n * 4) as usize];
+    for y in 0..n {
+        for x in 0..n {
+            let o = ((y * n + x) * 4) as usize;
+            if !empty(x, y) {
+                f0[o] = (x + 1) as u8;
+                f0[o + 1] = (y + 1) as u8;
+            }
+        }
+    }
+    (f0, f1)
+}
+
+fn mlp() -> FixedMlp {
+    FixedMlp::from_weights(&MlpWeights::ZERO).unwrap()
+}
+
+struct Fb {
+    w: u32,
+    h: u32,
+    px: Vec<[u8; 3]>,
+    writes: Vec<u32>,
+}
+
+impl OriginDimensions for Fb {
+    fn size(&self) -> Size {
+        Size::new(self.w, self.h)
+    }
+}
+
+impl DrawTarget for Fb {
+    type Color = Rgb888;
+    type Error = core::convert::Infallible;
+    fn draw_iter<I: IntoIterator<Item = Pixel<Rgb888>>>(
+        &mut self,
+        it: I,
+    ) -> Result<(), Self::Error> {
+        use embedded_graphics_core::pixelcolor::RgbColor;
+        for Pixel(p, c) in it {
+            let i = (p.y as u32 * self.w + p.x as u32) as usize;
+            self.px[i] = [c.r(), c.g(), c.b()];
+            self.writes[i] += 1;
+        }
+        Ok(())
+    }
+}
+
+/// Rasterizes all quads into one full-frame tile list; returns samples.
+fn raster(v: &View, parts: &[Part]) -> (Vec<Option<Sample>>, TileStats) {
+    let mut out = vec![None; (v.width() * v.height()) as usize];
+    let mut tile = TileRenderer::<16, 8>::new();
+    let mut stats = TileStats::default();
+    let _ = for_each_tile::<16, 8, ()>(&mut tile, v, parts, |t| {
+        t.for_each_sample(|x, y, s| out[(y * v.width() + x) as usize] = s);
+        stats.add(&t.stats());
+        Ok(())
+    });
+    (out, stats)
+}
+
+#[test]
+fn a_facing_quad_covers_its_projection_without_cracks_or_overlap() {
+    // Camera on −y looking at +y; the quad at y = 0 spans x, z ∈ [−1, 1].
+    let v = view(Vec3::new(0.0, -4.0, 0.0), 64, 40.0);
+    let (f0, f1) = atlas_pages(16, |_, _| false);
+    let quads = [quad(0.0, -1.0, 1.0, -1.0, 1.0, 16)];
+    let m = mlp();
+    let parts = [Part {
+        quads: &quads,
+        atlas: Atlas::new(16, 16, &f0, &f1).unwrap(),
+        mlp: &m,
+    }];
+    let (samples, stats) = raster(&v, &parts);
+    // Projected square: half-size f·1/4 pixels around the centre.
+    let f = 32.0 / (20f32.to_radians()).tan();
+    let half = f / 4.0;
+    let mut expect = 0;
+    for y in 0..64 {
+        for x in 0..64 {
+            let inside =
+                ((x as f32 + 0.5) - 32.0).abs() < half && ((y as f32 + 0.5) - 32.0).abs() < half;
+            let got = samples[y * 64 + x].is_some();
+            if inside {
+                expect += 1;
+            }
+            // Away from the boundary (sub-pixel), coverage must match exactly.
+            let dist = (((x as f32 + 0.5) - 32.0).abs() - half)
+                .abs()
+                .min((((y as f32 + 0.5) - 32.0).abs() - half).abs());
+            if dist > 0.01 {
+                assert_eq!(got, inside, "pixel {x},{y}");
+            }
+        }
+    }
+    let covered = samples.iter().filter(|s| s.is_some()).count();
+    assert!(
+        (covered as i32 - expect).abs() <= 2,
+        "{covered} vs {expect}"
+    );
+    // Two triangles, shared diagonal: every covered pixel written exactly once.
+    assert_eq!(stats.fragments as usize, covered);
+    assert_eq!(stats.discarded, 0);
+}
+
+#[test]
+fn texture_lookup_is_perspective_correct() {
+    // A floor quad seen at a grazing angle: compare each pixel's texel with
+    // the ray–plane intersection.
+    let eye = Vec3::new(0.3, -3.0, 1.2);
+    let v = view(eye, 96, 50.0);
+    let n = 64;
+    let (f0, f1) = atlas_pages(n, |_, _| false);
+    // Plane z = 0, x ∈ [−1, 1], y ∈ [−1, 1] (texel x ↔ world x, texel y ↔ −world y).
+    let t0 = 0.5;
+    let t1 = n as f32 - 0.5;
+    let q = Quad::new([
+        Vertex::at_texel([-1.0, 1.0, 0.0], t0, t0, n, n),
+        Vertex::at_texel([-1.0, -1.0, 0.0], t0, t1, n, n),
+        Vertex::at_texel([1.0, 1.0, 0.0], t1, t0, n, n),
+        Vertex::at_texel([1.0, -1.0, 0.0], t1, t1, n, n),
+    ]);
+    let quads = [q];
+    let m = mlp();
+    let parts = [Part {
+        quads: &quads,
+        atlas: Atlas::new(n, n, &f0, &f1).unwrap(),
+        mlp: &m,
+    }];
+    let (samples, _) = raster(&v, &parts);
+    let mut checked = 0;
+    let mut off = 0;
+    for y in 0..96u32 {
+        for x in 0..96u32 {
+            let Some(s) = samples[(y * 96 + x) as usize] else {
+                continue;
+            };
+            let d = v.pixel_dir_f32(x, y);
+            let t = -eye.z / d[2];
+            let (wx, wy) = (eye.x + t * d[0], eye.y + t * d[1]);
+            // Texel coordinate: x from 0.5 at −1 to n − 0.5 at +1.
+            let tx = t0 + (wx + 1.0) / 2.0 * (t1 - t0);
+            let ty = t0 + (1.0 - wy) / 2.0 * (t1 - t0);
+            let (ex, ey) = (tx.floor() as i64, ty.floor() as i64);
+            let (gx, gy) = (s.texel[0] as i64, s.texel[1] as i64);
+            // Only texel-boundary cases may differ, by one texel.
+            assert!(
+                (gx - ex).abs() <= 1 && (gy - ey).abs() <= 1,
+                "pixel {x},{y}: {gx},{gy} vs {ex},{ey}"
+            );
+            if (gx, gy) != (ex, ey) {
+                off += 1;
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked > 1000, "{checked}");
+    assert!(off * 100 < checked, "{off} of {checked} off by one texel");
+}
+
+#[test]
+fn depth_test_keeps_the_nearest_quad_in_any_order_and_alpha_test_discards() {
+    let v = view(Vec3::new(0.0, -4.0, 0.0), 32, 40.0);
+    let (fa0, fa1) = atlas_pages(8, |_, _| false);
+    // The near quad's left half is empty: the far quad shows through there.
+    let (fb0, fb1) = atlas_pages(8, |x, _| x < 4);
+    let far = [quad(0.5, -1.0, 1.0, -1.0, 1.0, 8)];
+    let near = [quad(-0.5, -1.0, 1.0, -1.0, 1.0, 8)];
+    let m = mlp();
+    let a = Atlas::new(8, 8, &fa0, &fa1).unwrap();
+    let b = Atlas::new(8, 8, &fb0, &fb1).unwrap();
+    for order in [[0, 1], [1, 0]] {
+        let all = [
+            Part {
+                quads: &far,
+                atlas: a,
+                mlp: &m,
+            },
+            Part {
+                quads: &near,
+                atlas: b,
+                mlp: &m,
+            },
+        ];
+        let parts = [all[order[0]], all[order[1]]];
+        let near_index = order.iter().position(|&i| i == 1).unwrap() as u16;
+        let (samples, stats) = raster(&v, &parts);
+        assert!(stats.discarded > 0);
+        let row = 16 * 32;
+        let left = samples[row + 12].unwrap();
+        let right = samples[row + 20].unwrap();
+        assert_ne!(
+            left.part, near_index,
+            "empty texels of the near quad are discarded"
+        );
+        assert_eq!(
+            right.part, near_index,
+            "the near quad wins where it is opaque"
+        );
+    }
+}
+
+#[test]
+fn pixel_dir_matches_float_rays_and_is_unit() {
+    let v = view(Vec3::new(1.0, -3.0, 2.0), 200, 60.0);
+    for (x, y) in [(0, 0), (199, 0), (0, 199), (100, 100), (37, 150)] {
+        let q = v.pixel_dir(x, y).to_f64();
+        let f = v.pixel_dir_f32(x, y);
+        let len = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
+        assert!((len - 1.0).abs() < 1e-8, "{len}");
+        for k in 0..3 {
+            assert!((q[k] - f[k] as f64).abs() < 1e-6, "{q:?} {f:?}");
+        }
+    }
+    // The centre pixel looks at the origin (the camera's target).
+    let c = v.pixel_dir_f32(100, 100);
+    let want = Vec3::new(-1.0, 3.0, -2.0).normalize();
+    assert!((Vec3::from(c) - want).length() < 0.01);
+}
+
+#[test]
+fn render_frame_and_coverage_agree_and_fill_every_pixel_once() {
+    let v = view(Vec3::new(2.0, -3.0, 1.5), 50, 45.0);
+    let (f0, f1) = atlas_pages(16, |x, y| (x + y) % 5 == 0);
+    let quads = [
+        quad(0.0, -1.0, 1.0, -1.0, 1.0, 16),
+        quad(0.3, -0.5, 0.7, -0.2, 1.3, 16),
+        Quad::triangle(
+            Vertex::at_texel([-1.0, -0.5, -1.0], 0.5, 0.5, 16, 16),
+            Vertex::at_texel([1.0, -0.5, -1.0], 15.5, 0.5, 16, 16),
+            Vertex::at_texel([0.0, -0.5, 0.8], 8.0, 15.5, 16, 16),
+        ),
+    ];
+    let m = mlp();
+    let parts = [Part {
+        quads: &quads,
+        atlas: Atlas::new(16, 16, &f0, &f1).unwrap(),
+        mlp: &m,
+    }];
+    let mut fb = Fb {
+        w: 50,
+        h: 50,
+        px: vec![[0; 3]; 2500],
+        writes: vec![0; 2500],
+    };
+    let mut tile = TileRenderer::<8, 16>::new();
+    let stats = render_frame(&mut tile, &v, &parts, &mut fb).unwrap();
+    assert!(fb.writes.iter().all(|&w| w == 1));
+    let grey = fb.px.iter().filter(|p| **p == [128; 3]).count();
+    let white = fb.px.iter().filter(|p| **p == [255; 3]).count();
+    assert_eq!(grey + white, 2500);
+    assert_eq!(grey as u32, stats.pixels_shaded);
+    assert!(grey > 300 && white > 300);
+    let mut bits = [0u32; 1];
+    let cov = coverage(&mut tile, &v, &parts, &mut bits).unwrap();
+    assert_eq!(cov.pixels_covered, stats.pixels_shaded);
+    assert_eq!(cov.quads_drawn, 3);
+    assert_eq!(stats.quads_drawn, 3);
+    assert_eq!(cov.quads_visible, 3);
+    assert_eq!(bits[0], 0b111);
+    assert_eq!(
+        coverage(&mut tile, &v, &parts, &mut []),
+        Err(RasterError::BufferTooSmall { needed: 1, got: 0 })
+    );
+}
+
+#[test]
+fn quads_behind_or_beside_the_camera_are_not_drawn_and_bad_input_does_not_panic() {
+    let v = view(Vec3::new(0.0, -4.0, 0.0), 32, 40.0);
+    let behind = quad(-5.0, -1.0, 1.0, -1.0, 1.0, 8);
+    assert!(ScreenQuad::project(&v, &behind, 0, 0).is_none());
+    let beside = quad(0.0, 10.0, 11.0, -1.0, 1.0, 8);
+    assert!(ScreenQuad::project(&v, &beside, 0, 0).is_none());
+    // Straddling the camera plane: the triangle with a corner behind is skipped.
+    let mut straddle = quad(0.0, -1.0, 1.0, -1.0, 1.0, 8);
+    straddle.corners[1].pos = [-1.0, -5.0, -1.0];
+    let sq = ScreenQuad::project(&v, &straddle, 0, 0).unwrap();
+    assert_eq!(sq.clipped, 1);
+    let _ = sq;
+    let mut nan = quad(0.0, -1.0, 1.0, -1.0, 1.0, 8);
+    nan.corners[0].pos[0] = f32::NAN;
+    nan.corners[2].uv[0] = f32::INFINITY;
+    let (f0, f1) = atlas_pages(8, |_, _| false);
+    let m = mlp();
+    let quads = [nan];
+    let parts = [Part {
+        quads: &quads,
+        atlas: Atlas::new(8, 8, &f0, &f1).unwrap(),
+        mlp: &m,
+    }];
+    let _ = raster(&v, &parts);
+    assert_eq!(
+        Atlas::new(8, 8, &f0, &f1[1..]).unwrap_err(),
+        RasterError::BadAtlas
+    );
+    assert_eq!(
+        Atlas::new(0, 8, &[], &[]).unwrap_err(),
+        RasterError::BadAtlas
+    );
+    assert!(View::new(Mat4::IDENTITY, 0.0, 1.0, 0.0, 0.0, 8, 8).is_err());
+    assert!(View::new(Mat4::ZERO, 10.0, 10.0, 4.0, 4.0, 8, 8).is_err());
+    assert!(View::new(Mat4::IDENTITY, 10.0, 10.0, 4.0, 4.0, 0, 8).is_err());
+}
+
+#[test]
+fn g_buffer_is_16_bytes_per_pixel() {
+    assert_eq!(core::mem::size_of::<GPixel>(), 16);
+    assert!(core::mem::size_of::<TileRenderer<16, 8>>() < 16 * 8 * 16 + 64);
+}
