@@ -14,6 +14,7 @@
 //!
 //! The model and its calibration: `docs/device.md`.
 
+pub mod assets;
 pub mod output;
 pub mod timeline;
 pub mod turntable;
