@@ -1,13 +1,15 @@
-//! Device descriptions (TOML): memory budget, load limits and the throughput
-//! figures the simulator needs.
+//! Device descriptions (TOML) and the device model the simulator runs:
+//! memory limits, load bandwidths and the throughputs that turn a frame's
+//! work into time.
 //!
 //! **1 MB = 10^6 bytes** in every field and message (the paper's 240 MB
 //! budget is 240 000 000 bytes).
 //!
 //! Built-in devices are compiled in from `sim/devices/*.toml`: `iphone13`
 //! (budget 240 MB, loading fails above 240 MB) and `pixel4` (150 MB; above
-//! it frames slow by about 15 FPS). Their throughput figures are
-//! provisional; the device-simulation issue calibrates them.
+//! it frames slow by about 15 FPS). Their comments say which of the NeRFlex
+//! paper's figures calibrated which value; `docs/device.md` derives the
+//! model.
 //!
 //! ```toml
 //! name = "iphone13"
@@ -20,14 +22,34 @@
 //! mac_per_s = 4.0e11             # multiply-adds per second for the MLP shader
 //! quads_per_s = 6.0e8            # quads rasterised per second
 //! frame_overhead_ms = 2.0        # fixed cost per frame
-//! load_mb_per_s = 150.0          # reading + decoding baked data
+//! load_mb_per_s = 150.0          # reading the baked files (asynchronous)
+//! decode_mb_per_s = 400.0        # optional: decoding + uploading, MB of resident data per second
 //! [display]
 //! refresh_hz = 60.0
 //! width_px = 1170
 //! height_px = 2532
+//! # [viewer]                     # optional: the render target of the viewer
+//! # width_px = 800               #   (default 800 × 800, MobileNeRF's canvas)
+//! # height_px = 800
 //! ```
 //!
 //! Unknown fields are errors; every error names the file and the field.
+//! The fields added by the simulator (`decode_mb_per_s`, `[viewer]`) are
+//! optional, so device files written for `nerflex plan` still load.
+//!
+//! # The model (see `docs/device.md`)
+//!
+//! - **Frame time** `t = overhead + quads_drawn / quads_per_s +
+//!   pixels_shaded · 480 / mac_per_s` ([`Device::frame_cost`]): every quad
+//!   the viewer draws is set up and rasterised into the deferred G-buffer,
+//!   then every covered pixel runs the 11→16→16→3 MLP once
+//!   ([`MLP_MACS_PER_PIXEL`] = 11·16 + 16·16 + 16·3 multiply-adds).
+//! - **FPS** of a frame is `min(1/t, refresh_hz)`; above the soft limit
+//!   the device loses `fps_penalty` frames per second (never below 0)
+//!   ([`Device::fps`]).
+//! - **Loading** ([`Device::load_check`]): data (file bytes) above the hard
+//!   limit fails to load; GPU-resident bytes ([`resident_bytes`]) are the
+//!   decoded atlas pages, the vertex buffers and the deferred G-buffer.
 
 use nerflex_core::units::Bytes;
 use serde::{Deserialize, Serialize};
@@ -59,10 +81,13 @@ pub struct Device {
     /// Above this total, rendering slows down.
     #[serde(default)]
     pub soft_limit: Option<SoftLimit>,
-    /// Throughput figures (provisional until calibrated).
+    /// Throughput figures.
     pub throughput: Throughput,
     /// The screen.
     pub display: Display,
+    /// The viewer's render target (default [`Viewer::DEFAULT`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub viewer: Option<Viewer>,
 }
 
 /// A memory level above which rendering slows down.
@@ -85,8 +110,42 @@ pub struct Throughput {
     pub quads_per_s: f64,
     /// Fixed cost of one frame, milliseconds.
     pub frame_overhead_ms: f64,
-    /// Load bandwidth (read + decode), MB per second.
+    /// Load bandwidth: file bytes read (or downloaded) per second, MB/s.
+    /// Reading is asynchronous: frames keep rendering meanwhile.
     pub load_mb_per_s: f64,
+    /// Decoding and uploading: resident bytes (decoded atlas pages and
+    /// vertex buffers) produced per second on the viewer's main thread, MB/s
+    /// (default [`DEFAULT_DECODE_MB_PER_S`]). This work blocks frames: it
+    /// is the loading stutter.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub decode_mb_per_s: Option<f64>,
+}
+
+/// Decode + upload rate when a device file gives none, MB of resident data
+/// per second (an assumption: the paper gives no load timings).
+pub const DEFAULT_DECODE_MB_PER_S: f64 = 400.0;
+
+/// The render target of the viewer (the deferred G-buffer's size).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Viewer {
+    /// Width, pixels.
+    pub width_px: u32,
+    /// Height, pixels.
+    pub height_px: u32,
+}
+
+impl Viewer {
+    /// MobileNeRF's viewer draws the synthetic scenes into an 800 × 800 canvas.
+    pub const DEFAULT: Viewer = Viewer {
+        width_px: 800,
+        height_px: 800,
+    };
+
+    /// Pixels of the render target.
+    pub fn pixels(&self) -> u64 {
+        u64::from(self.width_px) * u64::from(self.height_px)
+    }
 }
 
 /// The screen.
@@ -228,6 +287,20 @@ impl Device {
         positive("throughput.quads_per_s", t.quads_per_s)?;
         non_negative("throughput.frame_overhead_ms", t.frame_overhead_ms)?;
         positive("throughput.load_mb_per_s", t.load_mb_per_s)?;
+        if let Some(d) = t.decode_mb_per_s {
+            positive("throughput.decode_mb_per_s", d)?;
+        }
+        if let Some(v) = self.viewer {
+            if !(1..=16_384).contains(&v.width_px) || !(1..=16_384).contains(&v.height_px) {
+                return Err(bad(
+                    "viewer",
+                    format!(
+                        "width_px and height_px must be 1..=16384, got {} × {}",
+                        v.width_px, v.height_px
+                    ),
+                ));
+            }
+        }
         positive("display.refresh_hz", self.display.refresh_hz)?;
         if self.display.width_px == 0 || self.display.height_px == 0 {
             return Err(bad(
@@ -253,7 +326,145 @@ impl Device {
         let s = self.soft_limit?;
         Some((Bytes::from_mb(s.mb).ok()?, s.fps_penalty))
     }
+
+    /// The viewer's render target ([`Viewer::DEFAULT`] unless the file sets one).
+    pub fn viewer(&self) -> Viewer {
+        self.viewer.unwrap_or(Viewer::DEFAULT)
+    }
+
+    /// Decode + upload rate, MB of resident data per second.
+    pub fn decode_mb_per_s(&self) -> f64 {
+        self.throughput
+            .decode_mb_per_s
+            .unwrap_or(DEFAULT_DECODE_MB_PER_S)
+    }
+
+    /// Bytes of the deferred G-buffer at the viewer's resolution.
+    pub fn gbuffer_bytes(&self) -> Bytes {
+        Bytes(self.viewer().pixels() * GBUFFER_BYTES_PER_PIXEL)
+    }
+
+    /// Time of one frame, split into its three terms. Negative or NaN work
+    /// counts as none; infinite work takes forever.
+    pub fn frame_cost(&self, work: &FrameWork) -> FrameCost {
+        let t = &self.throughput;
+        let quads = work.quads_drawn.max(0.0);
+        let pixels = work.pixels_shaded.max(0.0);
+        FrameCost {
+            overhead_s: t.frame_overhead_ms / 1e3,
+            raster_s: quads / t.quads_per_s,
+            shade_s: pixels * MLP_MACS_PER_PIXEL as f64 / t.mac_per_s,
+        }
+    }
+
+    /// Frames per second of a frame that took `frame_s` seconds: capped by
+    /// the refresh rate, minus the soft-limit penalty when the loaded data
+    /// is over the soft limit, never below 0. Always finite.
+    pub fn fps(&self, frame_s: f64, over_soft_limit: bool) -> f64 {
+        let raw = if frame_s.is_nan() || frame_s <= 0.0 {
+            f64::INFINITY
+        } else {
+            1.0 / frame_s
+        };
+        let capped = raw.min(self.display.refresh_hz);
+        let penalty = match self.soft_limit {
+            Some(s) if over_soft_limit => s.fps_penalty,
+            _ => 0.0,
+        };
+        (capped - penalty).max(0.0)
+    }
+
+    /// Whether `data` bytes are over the soft limit (`false` without one).
+    pub fn over_soft_limit(&self, data: Bytes) -> bool {
+        self.soft_limit_bytes()
+            .is_some_and(|(limit, _)| data > limit)
+    }
+
+    /// Whether a scene of `data` bytes (its baked files) loads: above the
+    /// hard limit it does not (the paper: WebGL on the iPhone 13 fails to
+    /// load more than 240 MB).
+    pub fn load_check(&self, data: Bytes) -> Result<(), LoadFailure> {
+        match self.hard_limit() {
+            Some(limit) if data > limit => Err(LoadFailure {
+                device: self.name.clone(),
+                data_bytes: data.0,
+                limit_bytes: limit.0,
+            }),
+            _ => Ok(()),
+        }
+    }
 }
+
+/// Multiply-adds of the 11→16→16→3 MLP for one pixel: 11·16 + 16·16 + 16·3.
+pub const MLP_MACS_PER_PIXEL: u64 = 11 * 16 + 16 * 16 + 16 * 3;
+
+/// Vertex-buffer bytes per quad on the GPU: the viewer's OBJ loader
+/// de-indexes each quad into two triangles (6 vertices) of position
+/// (3 × f32) and texture coordinates (2 × f32).
+pub const VERTEX_BYTES_PER_QUAD: u64 = 6 * (3 + 2) * 4;
+
+/// Deferred G-buffer bytes per pixel: two RGBA8 feature targets and a
+/// 32-bit depth buffer (MobileNeRF's viewer).
+pub const GBUFFER_BYTES_PER_PIXEL: u64 = 4 + 4 + 4;
+
+/// GPU-resident bytes of loaded objects: decoded atlas pages (RGBA8, two
+/// per shape) plus vertex buffers ([`VERTEX_BYTES_PER_QUAD`]). The
+/// G-buffer ([`Device::gbuffer_bytes`]) comes on top, once per viewer.
+pub fn resident_bytes(atlas_bytes: u64, quads: u64) -> Bytes {
+    Bytes(atlas_bytes.saturating_add(quads.saturating_mul(VERTEX_BYTES_PER_QUAD)))
+}
+
+/// The work of one frame at the viewer's resolution.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FrameWork {
+    /// Quads projected onto the image (set up and rasterised).
+    pub quads_drawn: f64,
+    /// Covered pixels, each shaded once by the MLP.
+    pub pixels_shaded: f64,
+}
+
+/// The time of one frame, by term (seconds).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FrameCost {
+    /// Fixed cost (submission, compositing).
+    pub overhead_s: f64,
+    /// Rasterising the quads into the G-buffer.
+    pub raster_s: f64,
+    /// Running the MLP on every covered pixel.
+    pub shade_s: f64,
+}
+
+impl FrameCost {
+    /// The frame's time.
+    pub fn total_s(&self) -> f64 {
+        self.overhead_s + self.raster_s + self.shade_s
+    }
+}
+
+/// A scene too large for a device to load.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LoadFailure {
+    /// The device.
+    pub device: String,
+    /// The scene's data (file bytes).
+    pub data_bytes: u64,
+    /// The device's hard limit, bytes.
+    pub limit_bytes: u64,
+}
+
+impl fmt::Display for LoadFailure {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{:.2} MB of data is over the {:.2} MB that {} can load (the viewer fails to load it)",
+            Bytes(self.data_bytes).as_mb(),
+            Bytes(self.limit_bytes).as_mb(),
+            self.device
+        )
+    }
+}
+
+impl std::error::Error for LoadFailure {}
 
 /// The dotted field a TOML error at 0-based `line` is about: the table
 /// header above it plus the key on that line (or, for a missing field, the

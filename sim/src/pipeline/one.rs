@@ -1,0 +1,297 @@
+//! One method on one device: what `nerflex run` does and reports.
+
+use super::stages::{
+    self, baseline_plan, baseline_views, plan_for, realise, simulate_on, Input, Options, Prepared,
+    Progress, Realised, RealisedObject, SceneQuality, Timings,
+};
+use super::bakes::BakeStore;
+use crate::baselines::{Method, Plan};
+use crate::device::Device;
+use crate::metrics::Lpips;
+use crate::simulate::output::write_text;
+use crate::simulate::Simulation;
+use nerflex_core::units::Bytes;
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// The result of `nerflex run`.
+pub struct RunResult {
+    /// Scene label.
+    pub label: String,
+    /// Device name.
+    pub device: String,
+    /// The plan.
+    pub plan: Plan,
+    /// Seconds the planner took.
+    pub plan_s: f64,
+    /// The realised scene.
+    pub realised: Realised,
+    /// The simulation.
+    pub simulation: Simulation,
+    /// Stage timings.
+    pub timings: Timings,
+    /// Networks of the segmentation and their objects.
+    pub networks: Vec<(String, Vec<String>)>,
+    /// Sample bakes: (baked now, taken from the store).
+    pub sample_bakes: (usize, usize),
+    /// The planner's scene (profile form).
+    pub scene_json: serde_json::Value,
+}
+
+/// Runs the whole pipeline for one method on one device.
+#[allow(clippy::too_many_arguments)]
+pub fn run_one(
+    input: &Input,
+    opts: &Options,
+    out: &Path,
+    method: Method,
+    device: &Device,
+    lpips: Option<&Lpips>,
+    progress: &dyn Progress,
+) -> anyhow::Result<RunResult> {
+    let prepared = stages::prepare(input, opts, out, lpips, progress)?;
+    let (plan, plan_s) = method_plan(&prepared, method, device, opts, lpips, progress)?;
+    let realised = realise(&prepared, &plan, opts, lpips, progress)?;
+    progress.stage(&format!("simulating on {}", device.name), 1);
+    let simulation = simulate_on(&realised, device, opts)?;
+    progress.step("simulated");
+    let baked = prepared.samples.iter().filter(|b| !b.cached).count();
+    Ok(RunResult {
+        label: prepared.label.clone(),
+        device: device.name.clone(),
+        plan,
+        plan_s,
+        realised,
+        simulation,
+        timings: prepared.timings,
+        networks: prepared
+            .networks
+            .iter()
+            .map(|n| (n.name.clone(), n.objects.clone()))
+            .collect(),
+        sample_bakes: (baked, prepared.samples.len() - baked),
+        scene_json: prepared.scene_json.clone(),
+    })
+}
+
+/// The plan of any method: the planner's for the NeRFlex selectors, real
+/// (128, 17) bakes for Single- and Block-NeRF.
+pub fn method_plan(
+    prepared: &Prepared,
+    method: Method,
+    device: &Device,
+    opts: &Options,
+    lpips: Option<&Lpips>,
+    progress: &dyn Progress,
+) -> anyhow::Result<(Plan, f64)> {
+    match method {
+        Method::Single | Method::Block => {
+            let (single, block) = baseline_views(prepared)?;
+            let views: Vec<&crate::bake::sweep::ObjectViews> = if method == Method::Single {
+                vec![&single]
+            } else {
+                block.iter().collect()
+            };
+            progress.stage(&format!("{method} bakes at (128, 17)"), views.len() as u64);
+            let store = BakeStore::new(&opts.store);
+            let (plan, _) = baseline_plan(method, &views, device, &store, lpips, progress)?;
+            Ok((plan, 0.0))
+        }
+        _ => plan_for(prepared, method, device),
+    }
+}
+
+#[derive(Serialize)]
+struct ReportJson<'a> {
+    scene: &'a str,
+    device: &'a str,
+    method: String,
+    networks: Vec<NetworkJson<'a>>,
+    timings: Timings,
+    plan_s: f64,
+    sample_bakes_new: usize,
+    sample_bakes_reused: usize,
+    budget_bytes: u64,
+    predicted_bytes: u64,
+    file_bytes: u64,
+    objects: &'a [RealisedObject],
+    quality: SceneQuality,
+    load_failure: Option<String>,
+    mean_fps: f64,
+    steady_fps: f64,
+    loaded_at_s: Option<f64>,
+}
+
+#[derive(Serialize)]
+struct NetworkJson<'a> {
+    name: &'a str,
+    objects: &'a [String],
+}
+
+impl RunResult {
+    /// The short final report.
+    pub fn report_text(&self, wall_s: f64, with_lpips: bool) -> String {
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "nerflex run: {} on {} with {} ({:.0} s)",
+            self.label, self.device, self.plan.method, wall_s
+        );
+        let names: Vec<&str> = self.networks.iter().map(|(n, _)| n.as_str()).collect();
+        let _ = writeln!(
+            s,
+            "segmentation: {} networks ({}) in {:.2} s",
+            names.len(),
+            names.join(", "),
+            self.timings.segment_s
+        );
+        let _ = writeln!(
+            s,
+            "profiler: {} sample bakes ({} new, {} from the store, {:.0} s), points + fit {:.3} s",
+            self.sample_bakes.0 + self.sample_bakes.1,
+            self.sample_bakes.0,
+            self.sample_bakes.1,
+            self.timings.sample_bakes_s,
+            self.timings.profile_s
+        );
+        let predicted: u64 = self.realised.objects.iter().map(|o| o.predicted_bytes).sum();
+        let _ = writeln!(
+            s,
+            "plan ({}): {:.2} MB predicted, {:.2} MB baked, budget {:.2} MB; planned in {:.2} ms",
+            self.plan.method,
+            Bytes(predicted).as_mb(),
+            Bytes(self.realised.file_bytes()).as_mb(),
+            Bytes(self.plan.budget_bytes).as_mb(),
+            self.plan_s * 1e3
+        );
+        let _ = writeln!(
+            s,
+            "  {:<12} {:>4} {:>3} {:>9} {:>9} {:>9} {:>9}",
+            "object", "g", "p", "pred MB", "baked MB", "pred SSIM", "SSIM"
+        );
+        for o in &self.realised.objects {
+            let _ = writeln!(
+                s,
+                "  {:<12} {:>4} {:>3} {:>9.2} {:>9.2} {:>9.4} {:>9.4}",
+                o.name,
+                o.g,
+                o.p,
+                Bytes(o.predicted_bytes).as_mb(),
+                Bytes(o.file_bytes).as_mb(),
+                o.predicted_ssim,
+                o.ssim
+            );
+        }
+        let q = &self.realised.quality;
+        let _ = writeln!(
+            s,
+            "held-out views of the whole scene ({}): SSIM {:.4}  PSNR {:.2} dB  LPIPS {}",
+            q.views,
+            q.ssim,
+            q.psnr,
+            match q.lpips {
+                Some(l) => format!("{l:.4}"),
+                None if with_lpips => "n/a".into(),
+                None => "skipped (no weights)".into(),
+            }
+        );
+        let sim = &self.simulation;
+        match &sim.load_failure {
+            Some(f) => {
+                let _ = writeln!(s, "{}: load FAILED ({f}); FPS 0", self.device);
+            }
+            None => {
+                let _ = writeln!(
+                    s,
+                    "{}: loaded in {}, mean FPS {:.1} over {} frames (after loading {:.1}){}",
+                    self.device,
+                    sim.loaded_at_s
+                        .map_or("—".into(), |t| format!("{t:.2} s")),
+                    sim.mean_fps,
+                    sim.frames.len(),
+                    sim.steady_fps,
+                    if sim.over_soft_limit {
+                        ", over the soft memory limit"
+                    } else {
+                        ""
+                    }
+                );
+            }
+        }
+        s
+    }
+
+    /// Writes `report.json`, `plan.json`, `scene.json` and the asset links
+    /// (`assets/<object>/g<g>_p<p>` → the store) into `out`, so
+    /// `nerflex simulate --scene OUT/scene.json --plan OUT/plan.json` works.
+    pub fn write(&self, out: &Path) -> anyhow::Result<()> {
+        let predicted = self.realised.objects.iter().map(|o| o.predicted_bytes).sum();
+        let report = ReportJson {
+            scene: &self.label,
+            device: &self.device,
+            method: self.plan.method.to_string(),
+            networks: self
+                .networks
+                .iter()
+                .map(|(n, o)| NetworkJson { name: n, objects: o })
+                .collect(),
+            timings: self.timings,
+            plan_s: self.plan_s,
+            sample_bakes_new: self.sample_bakes.0,
+            sample_bakes_reused: self.sample_bakes.1,
+            budget_bytes: self.plan.budget_bytes,
+            predicted_bytes: predicted,
+            file_bytes: self.realised.file_bytes(),
+            objects: &self.realised.objects,
+            quality: self.realised.quality,
+            load_failure: self.simulation.load_failure.as_ref().map(|f| f.to_string()),
+            mean_fps: self.simulation.mean_fps,
+            steady_fps: self.simulation.steady_fps,
+            loaded_at_s: self.simulation.loaded_at_s,
+        };
+        write_text(&out.join("report.json"), &serde_json::to_string_pretty(&report)?)?;
+        write_text(&out.join("plan.json"), &serde_json::to_string_pretty(&self.plan)?)?;
+        write_text(
+            &out.join("scene.json"),
+            &serde_json::to_string_pretty(&self.scene_json)?,
+        )?;
+        for o in &self.realised.objects {
+            link_asset(&out.join("assets"), o)?;
+        }
+        Ok(())
+    }
+}
+
+/// `root/<object>/g<g>_p<p>` → the asset in the store (a symbolic link on
+/// Unix, a copy elsewhere).
+fn link_asset(root: &Path, o: &RealisedObject) -> anyhow::Result<()> {
+    use anyhow::Context as _;
+    let link = crate::simulate::assets::asset_dir(root, &o.name, o.g, o.p);
+    if let Some(parent) = link.parent() {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("{}: cannot create", parent.display()))?;
+    }
+    if link.symlink_metadata().is_ok() {
+        if link.is_dir() && !link.is_symlink() {
+            std::fs::remove_dir_all(&link)
+        } else {
+            std::fs::remove_file(&link)
+        }
+        .with_context(|| format!("{}: cannot replace", link.display()))?;
+    }
+    let target = std::fs::canonicalize(&o.asset)
+        .with_context(|| format!("{}: missing", o.asset.display()))?;
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(&target, &link)
+        .with_context(|| format!("{}: cannot link", link.display()))?;
+    #[cfg(not(unix))]
+    {
+        std::fs::create_dir_all(&link)?;
+        for e in std::fs::read_dir(&target)? {
+            let e = e?;
+            std::fs::copy(e.path(), link.join(e.file_name()))?;
+        }
+    }
+    Ok(())
+}

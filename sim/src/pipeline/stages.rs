@@ -1,0 +1,676 @@
+//! The stages of the NeRFlex pipeline, each a function of the previous
+//! stages' results, so `nerflex run` (one method, one device) and
+//! `nerflex eval` (every method, both devices, four scenes) share them.
+//!
+//! 1. [`prepare`]: capture (a built-in preset is generated), detail-based
+//!    segmentation, the profiler's sample bakes, curve fitting → a
+//!    [`Prepared`] scene with fitted profiles (the planner's input);
+//! 2. [`plan_for`]: one method's plan for one device's budget (timed);
+//! 3. [`realise`]: the plan's configurations baked (or found in the store),
+//!    the held-out views of the whole scene rendered with every object's
+//!    asset and measured (SSIM, PSNR, LPIPS) → a [`Realised`] scene;
+//! 4. [`simulate_on`]: the realised scene on a device (load, FPS).
+//!
+//! Single-NeRF and Block-NeRF do not go through the profiler: Single-NeRF is
+//! one bake of the whole scene (every object's pixels as one silhouette) at
+//! (128, 17), Block-NeRF one bake per object at (128, 17) from the original
+//! (not enlarged) views ([`baseline_bakes`]).
+
+use super::bakes::{BakeStore, Baked};
+use crate::baselines::{self, Budget, Method, Plan, PlannedObject, DEFAULT_G, DEFAULT_P};
+use crate::bake::sweep::{Fnv64, ObjectViews};
+use crate::camera::Camera;
+use crate::capture::Capture;
+use crate::device::Device;
+use crate::fit;
+use crate::metrics::{Lpips, Metrics};
+use crate::procedural::{arrange, make_capture, CaptureSpec, Layout, Preset, RenderOptions};
+use crate::render::{try_render_scene, RenderOptions as DrawOptions};
+use crate::scene_file::{self, Scene};
+use crate::segment::{self, SegCapture, SegmentOptions, Segmentation};
+use crate::simulate::assets::AssetScene;
+use crate::simulate::{self, SimOptions, Simulation, Turntable, TurntableSpec};
+use anyhow::{bail, Context as _};
+use image::RgbaImage;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Where the scene comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Input {
+    /// A capture folder (NeRF-synthetic layout; instance masks or alpha).
+    Capture(PathBuf),
+    /// A built-in scene, generated into `<out>/capture`.
+    Preset(Preset),
+}
+
+/// Settings of the pipeline (the reduced defaults of `nerflex run` are in
+/// [`Options::default`]).
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Image side of a generated capture, pixels.
+    pub size: u32,
+    /// Training views of a generated capture.
+    pub train_views: usize,
+    /// Held-out views of a generated capture.
+    pub test_views: usize,
+    /// Profiler sample points: g range (variable step ×3 from the low end).
+    pub sample_grid: (u32, u32),
+    /// Profiler sample points: p range (low, middle, high).
+    pub sample_patch: (u32, u32),
+    /// The planner's configuration space: g values.
+    pub space_grid: Vec<u32>,
+    /// The planner's configuration space: p values.
+    pub space_patch: Vec<u32>,
+    /// The turntable.
+    pub turntable: TurntableSpec,
+    /// Frames and period.
+    pub sim: SimOptions,
+    /// Folder of kept bakes.
+    pub store: PathBuf,
+    /// Write the rendered held-out views here (`None`: not kept).
+    pub renders: Option<PathBuf>,
+}
+
+impl Options {
+    /// The reduced defaults: 160 × 160 captures with 16 training and 4
+    /// held-out views; sample points g ∈ {16, 48, 144} × p ∈ {3, 10, 17};
+    /// planning over g ∈ {16, 24, 32, 48, 64, 96, 128, 144} ×
+    /// p ∈ {3, 5, 7, 9, 11, 13, 15, 17} (64 configurations per object).
+    pub fn reduced(store: PathBuf) -> Options {
+        Options {
+            size: 160,
+            train_views: 16,
+            test_views: 4,
+            sample_grid: (16, 144),
+            sample_patch: (3, 17),
+            space_grid: vec![16, 24, 32, 48, 64, 96, 128, 144],
+            space_patch: vec![3, 5, 7, 9, 11, 13, 15, 17],
+            turntable: TurntableSpec::DEFAULT,
+            sim: SimOptions::default(),
+            store,
+            renders: None,
+        }
+    }
+}
+
+/// Something to tell the user as the pipeline goes (a progress bar, or nothing).
+pub trait Progress: Sync {
+    /// A stage begins; `steps` units of work follow.
+    fn stage(&self, name: &str, steps: u64);
+    /// One unit of work is done; `what` names it.
+    fn step(&self, what: &str);
+}
+
+/// No progress output.
+pub struct Quiet;
+
+impl Progress for Quiet {
+    fn stage(&self, _: &str, _: u64) {}
+    fn step(&self, _: &str) {}
+}
+
+/// One network of the segmentation: its name and its training/held-out views.
+pub struct Network {
+    /// Name (the segmentation's folder name; the object name for a dedicated network).
+    pub name: String,
+    /// The scene objects it represents.
+    pub objects: Vec<String>,
+    /// Its views.
+    pub views: ObjectViews,
+}
+
+/// Wall-clock seconds of the stages (the paper's overhead figure measures
+/// segmentation, profiler and DP; bakes stand for training, excluded there).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Timings {
+    /// Generating the built-in capture (0 for a given capture).
+    pub capture_s: f64,
+    /// Detail-based segmentation (analysis, enlargement, writing).
+    pub segment_s: f64,
+    /// Profiler: choosing sample points and fitting the curves.
+    pub profile_s: f64,
+    /// Baking and measuring the sample points (training; not in the paper's figure).
+    pub sample_bakes_s: f64,
+}
+
+/// The method-independent part: segmented, sampled, fitted.
+pub struct Prepared {
+    /// A short name for reports (preset name or capture folder name).
+    pub label: String,
+    /// The original capture (held-out views of the whole scene).
+    pub capture: Capture,
+    /// The segmentation result.
+    pub segmentation: Segmentation,
+    /// One entry per network, in segmentation order.
+    pub networks: Vec<Network>,
+    /// Every sample bake.
+    pub samples: Vec<Baked>,
+    /// The planner's scene (fitted profiles on the configuration space).
+    pub scene: Scene,
+    /// The scene as JSON (profile form, as `nerflex plan --scene` reads it).
+    pub scene_json: serde_json::Value,
+    /// Timings.
+    pub timings: Timings,
+}
+
+/// Loads a capture and names it.
+fn input_capture(
+    input: &Input,
+    opts: &Options,
+    out: &Path,
+    progress: &dyn Progress,
+) -> anyhow::Result<(PathBuf, String, f64)> {
+    match input {
+        Input::Capture(dir) => {
+            let label = dir
+                .file_name()
+                .and_then(|n| n.to_str())
+                .unwrap_or("capture")
+                .to_string();
+            Ok((dir.clone(), label, 0.0))
+        }
+        Input::Preset(p) => {
+            let dir = out.join("capture");
+            let stamp = dir.join("nerflex-run.json");
+            let want = serde_json::json!({
+                "preset": p.name(), "size": opts.size,
+                "train_views": opts.train_views, "test_views": opts.test_views,
+            });
+            let have = std::fs::read_to_string(&stamp)
+                .ok()
+                .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
+            if have.as_ref() == Some(&want) && Capture::load(&dir).is_ok() {
+                return Ok((dir, p.name().to_string(), 0.0));
+            }
+            let t0 = Instant::now();
+            progress.stage(
+                &format!("rendering {} ({} views)", p.name(), opts.train_views + opts.test_views),
+                (opts.train_views + opts.test_views) as u64,
+            );
+            if dir.exists() {
+                std::fs::remove_dir_all(&dir)
+                    .with_context(|| format!("{}: cannot replace", dir.display()))?;
+            }
+            let spec = CaptureSpec {
+                objects: arrange(&p.kinds(), Layout::Ring, 0, 1.0),
+                layout: Layout::Ring.name().into(),
+                preset: Some(*p),
+                seed: 0,
+                train_views: opts.train_views,
+                test_views: opts.test_views,
+                size: opts.size,
+                render: RenderOptions::default(),
+            };
+            make_capture(&spec, &dir, &|| progress.step("view"))
+                .with_context(|| format!("writing {}", dir.display()))?;
+            std::fs::write(&stamp, want.to_string())
+                .with_context(|| format!("{}: cannot write", stamp.display()))?;
+            Ok((dir, p.name().to_string(), t0.elapsed().as_secs_f64()))
+        }
+    }
+}
+
+/// Every view of a capture as one object (alpha = silhouette of all its
+/// objects): a shared network, or Single-NeRF's whole scene.
+pub fn whole_capture_views(cap: &Capture, name: &str) -> ObjectViews {
+    let mut h = Fnv64::default();
+    h.write(name.as_bytes());
+    h.write(b"whole-capture");
+    for f in cap.train.iter().chain(&cap.test) {
+        h.write(format!("{:?}", f.camera).as_bytes());
+        h.write(f.image.as_raw());
+    }
+    ObjectViews {
+        name: name.to_string(),
+        content_hash: h.finish(),
+        train: cap
+            .train
+            .iter()
+            .map(|f| (f.camera, f.image.clone(), None))
+            .collect(),
+        test: cap.test.iter().map(|f| (f.camera, f.image.clone())).collect(),
+        search_box: None,
+    }
+}
+
+/// The views of one segmentation group folder, named `name`.
+fn network_views(dir: &Path, name: &str) -> anyhow::Result<ObjectViews> {
+    let cap = Capture::load(dir).with_context(|| format!("loading {}", dir.display()))?;
+    if cap.test.is_empty() {
+        bail!("{}: no held-out views to measure against", dir.display());
+    }
+    let mut views = match &cap.scene {
+        Some(s) if s.objects.len() == 1 => ObjectViews::from_capture(&cap, None)?,
+        Some(_) => whole_capture_views(&cap, name),
+        None => ObjectViews::from_capture(&cap, None)?,
+    };
+    views.name = name.to_string();
+    Ok(views)
+}
+
+/// Stage 1: capture, segmentation, profiler sample bakes, fit.
+pub fn prepare(
+    input: &Input,
+    opts: &Options,
+    out: &Path,
+    lpips: Option<&Lpips>,
+    progress: &dyn Progress,
+) -> anyhow::Result<Prepared> {
+    let mut timings = Timings::default();
+    let (capture_dir, label, capture_s) = input_capture(input, opts, out, progress)?;
+    timings.capture_s = capture_s;
+    let capture = Capture::load(&capture_dir)
+        .with_context(|| format!("loading {}", capture_dir.display()))?;
+    if capture.test.is_empty() {
+        bail!(
+            "{}: the capture has no held-out views (transforms_test.json) to measure quality on",
+            capture_dir.display()
+        );
+    }
+
+    progress.stage("segmenting", 1);
+    let t0 = Instant::now();
+    let seg_cap = SegCapture::load(&capture_dir)
+        .with_context(|| format!("segmentation input {}", capture_dir.display()))?;
+    let seg_dir = out.join("segment");
+    let segmentation = segment::segment(&seg_cap, &SegmentOptions::default(), &seg_dir)
+        .with_context(|| format!("segmenting {}", capture_dir.display()))?;
+    timings.segment_s = t0.elapsed().as_secs_f64();
+    progress.step("segmented");
+    let networks = segmentation
+        .groups
+        .iter()
+        .map(|g| {
+            Ok(Network {
+                name: g.folder.clone(),
+                objects: g.objects.clone(),
+                views: network_views(&seg_dir.join(&g.folder), &g.folder)?,
+            })
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+
+    // The profiler's sample points (timed with the fit below).
+    let t_points = Instant::now();
+    let plan = fit::sampling::variable_step(
+        opts.sample_grid.0..=opts.sample_grid.1,
+        opts.sample_patch.0..=opts.sample_patch.1,
+        fit::sampling::Step::Triple,
+    )
+    .map_err(|e| anyhow::anyhow!("profiler sample points: {e}"))?;
+    let points = plan.points();
+    let points_s = t_points.elapsed().as_secs_f64();
+
+    let store = BakeStore::new(&opts.store);
+    progress.stage(
+        "profiler sample bakes",
+        (networks.len() * points.len()) as u64,
+    );
+    let t1 = Instant::now();
+    let mut samples = Vec::new();
+    for n in &networks {
+        for &(g, p) in &points {
+            let b = store.get_or_bake(&n.views, g, p, lpips)?;
+            progress.step(&format!("{} g={g} p={p}", n.name));
+            samples.push(b);
+        }
+    }
+    timings.sample_bakes_s = t1.elapsed().as_secs_f64();
+
+    progress.stage("fitting profiles", 1);
+    let t2 = Instant::now();
+    let fit_samples: Vec<fit::Sample> = samples.iter().map(|b| to_fit_sample(&b.sample)).collect();
+    let fits = fit::fit_objects(&fit_samples, &[], None, fit::FamilyChoice::Auto)
+        .context("fitting the profiles")?;
+    let space = fit::profiles::Space {
+        grids: opts.space_grid.clone(),
+        patches: opts.space_patch.clone(),
+    };
+    let scene_json = fit::profiles::scene_json(&fits, |_| points.clone(), &space)
+        .context("writing the profiles")?;
+    timings.profile_s = points_s + t2.elapsed().as_secs_f64();
+    progress.step("fitted");
+    let scene = scene_file::parse(&scene_json.to_string(), "fitted profiles")
+        .context("reading the fitted profiles back as a scene")?;
+    Ok(Prepared {
+        label,
+        capture,
+        segmentation,
+        networks,
+        samples,
+        scene,
+        scene_json,
+        timings,
+    })
+}
+
+fn to_fit_sample(s: &crate::bake::sweep::Sample) -> fit::Sample {
+    fit::Sample {
+        object: s.object.clone(),
+        g: s.g,
+        p: s.p,
+        size: nerflex_core::units::Bytes(s.size_bytes),
+        gpu: Some(nerflex_core::units::Bytes(s.gpu_bytes)),
+        quads: Some(s.quads),
+        ssim: s.ssim,
+        psnr: Some(s.psnr),
+        lpips: s.lpips,
+        line: 0,
+    }
+}
+
+/// Stage 2: the plan of `method` for `device`'s budget, and the seconds it took.
+pub fn plan_for(
+    prepared: &Prepared,
+    method: Method,
+    device: &Device,
+) -> anyhow::Result<(Plan, f64)> {
+    let t0 = Instant::now();
+    let mut plan = baselines::plan(method, &prepared.scene, Budget::new(device.budget()))
+        .with_context(|| format!("{method} plan for {} on {}", prepared.label, device.name))?;
+    let secs = t0.elapsed().as_secs_f64();
+    plan.device = Some(device.name.clone());
+    Ok((plan, secs))
+}
+
+/// Scene-level image quality over the held-out views (means).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SceneQuality {
+    /// Mean SSIM.
+    pub ssim: f64,
+    /// Mean PSNR, dB (identical images count as 100 dB).
+    pub psnr: f64,
+    /// Mean LPIPS, if the weights were available.
+    pub lpips: Option<f64>,
+    /// Views measured.
+    pub views: usize,
+}
+
+/// One object of a realised scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RealisedObject {
+    /// Network name.
+    pub name: String,
+    /// g.
+    pub g: u32,
+    /// p.
+    pub p: u32,
+    /// Size the planner predicted, bytes.
+    pub predicted_bytes: u64,
+    /// Size of the baked files, bytes.
+    pub file_bytes: u64,
+    /// GPU bytes of its atlas pages.
+    pub gpu_bytes: u64,
+    /// Quads.
+    pub quads: u64,
+    /// SSIM the planner predicted.
+    pub predicted_ssim: f64,
+    /// SSIM measured on the network's own held-out views.
+    pub ssim: f64,
+    /// PSNR on the same views, dB.
+    pub psnr: f64,
+    /// LPIPS on the same views.
+    pub lpips: Option<f64>,
+    /// Asset folder.
+    pub asset: PathBuf,
+}
+
+/// A plan made real: baked, measured.
+pub struct Realised {
+    /// The objects, in load order.
+    pub objects: Vec<RealisedObject>,
+    /// The whole scene's quality on the capture's held-out views.
+    pub quality: SceneQuality,
+    /// Seconds spent baking now (0 if everything was in the store).
+    pub bake_s: f64,
+}
+
+impl Realised {
+    /// Total file bytes.
+    pub fn file_bytes(&self) -> u64 {
+        self.objects.iter().map(|o| o.file_bytes).sum()
+    }
+}
+
+/// The views a planned object is baked from.
+fn views_of<'a>(
+    prepared: &'a Prepared,
+    single: &'a ObjectViews,
+    block: &'a [ObjectViews],
+    method: Method,
+    o: &PlannedObject,
+) -> anyhow::Result<&'a ObjectViews> {
+    match method {
+        Method::Single => Ok(single),
+        Method::Block => block
+            .iter()
+            .find(|v| v.name == o.name)
+            .or_else(|| prepared.networks.iter().map(|n| &n.views).find(|v| v.name == o.name))
+            .with_context(|| format!("block: no views for `{}`", o.name)),
+        _ => prepared
+            .networks
+            .iter()
+            .find(|n| n.name == o.name)
+            .map(|n| &n.views)
+            .with_context(|| format!("no network `{}` in the segmentation", o.name)),
+    }
+}
+
+/// Single-NeRF's and Block-NeRF's views: the whole capture, and each scene
+/// object from the original views with its instance mask.
+pub fn baseline_views(prepared: &Prepared) -> anyhow::Result<(ObjectViews, Vec<ObjectViews>)> {
+    let single = whole_capture_views(&prepared.capture, "single");
+    let block = match &prepared.capture.scene {
+        Some(s) if s.objects.len() > 1 => s
+            .objects
+            .iter()
+            .map(|o| ObjectViews::from_capture(&prepared.capture, Some(&o.name)))
+            .collect::<anyhow::Result<Vec<_>>>()?,
+        _ => vec![whole_capture_views(&prepared.capture, "block")],
+    };
+    Ok((single, block))
+}
+
+/// The plans of Single-NeRF and Block-NeRF: real bakes at (128, 17), not
+/// the planner's derived tables. Their sizes are the baked file bytes;
+/// `feasible` compares them with the device's budget.
+pub fn baseline_plan(
+    method: Method,
+    views: &[&ObjectViews],
+    device: &Device,
+    store: &BakeStore,
+    lpips: Option<&Lpips>,
+    progress: &dyn Progress,
+) -> anyhow::Result<(Plan, Vec<Baked>)> {
+    let mut objects = Vec::new();
+    let mut bakes = Vec::new();
+    for v in views {
+        let b = store.get_or_bake(v, DEFAULT_G, DEFAULT_P, lpips)?;
+        progress.step(&format!("{} {} g={DEFAULT_G} p={DEFAULT_P}", method, v.name));
+        objects.push(PlannedObject {
+            name: v.name.clone(),
+            g: DEFAULT_G,
+            p: DEFAULT_P,
+            size_bytes: b.sample.size_bytes,
+            quality: b.sample.ssim,
+            config_index: None,
+        });
+        bakes.push(b);
+    }
+    let total: u64 = objects.iter().map(|o| o.size_bytes).sum();
+    let total_quality: f64 = objects.iter().map(|o| o.quality).sum();
+    let budget = device.budget();
+    Ok((
+        Plan {
+            method,
+            device: Some(device.name.clone()),
+            budget_bytes: budget.0,
+            feasible: total <= budget.0,
+            objects,
+            total_size_bytes: total,
+            total_quality,
+            total_quality_q: Default::default(),
+            total_units: 0,
+            budget_units: 0,
+            unit_bytes: 0,
+        },
+        bakes,
+    ))
+}
+
+/// Stage 3: bakes the plan's configurations (or finds them in the store),
+/// renders the capture's held-out views with all of them and measures.
+pub fn realise(
+    prepared: &Prepared,
+    plan: &Plan,
+    opts: &Options,
+    lpips: Option<&Lpips>,
+    progress: &dyn Progress,
+) -> anyhow::Result<Realised> {
+    let store = BakeStore::new(&opts.store);
+    let (single, block) = baseline_views(prepared)?;
+    progress.stage(
+        &format!("baking the {} plan", plan.method),
+        plan.objects.len() as u64,
+    );
+    let mut objects = Vec::new();
+    let mut bake_s = 0.0;
+    for o in &plan.objects {
+        let v = views_of(prepared, &single, &block, plan.method, o)?;
+        let b = store.get_or_bake(v, o.g, o.p, lpips)?;
+        bake_s += b.seconds;
+        progress.step(&format!("{} g={} p={}", o.name, o.g, o.p));
+        objects.push(RealisedObject {
+            name: o.name.clone(),
+            g: o.g,
+            p: o.p,
+            predicted_bytes: o.size_bytes,
+            file_bytes: b.sample.size_bytes,
+            gpu_bytes: b.sample.gpu_bytes,
+            quads: b.sample.quads,
+            predicted_ssim: o.quality,
+            ssim: b.sample.ssim,
+            psnr: b.sample.psnr,
+            lpips: b.sample.lpips,
+            asset: b.dir.clone(),
+        });
+    }
+    let quality = scene_quality(prepared, &objects, opts, lpips, progress)?;
+    Ok(Realised {
+        objects,
+        quality,
+        bake_s,
+    })
+}
+
+/// Renders the capture's held-out views with every object and compares
+/// them with the ground truth.
+fn scene_quality(
+    prepared: &Prepared,
+    objects: &[RealisedObject],
+    opts: &Options,
+    lpips: Option<&Lpips>,
+    progress: &dyn Progress,
+) -> anyhow::Result<SceneQuality> {
+    let assets = objects
+        .iter()
+        .map(|o| {
+            crate::asset::Asset::load(&o.asset)
+                .with_context(|| format!("loading {}", o.asset.display()))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let refs: Vec<&crate::asset::Asset> = assets.iter().collect();
+    let test = &prepared.capture.test;
+    progress.stage("rendering the held-out views", test.len() as u64);
+    let mut sum = SceneQuality::default();
+    let mut lp = 0.0;
+    for (i, f) in test.iter().enumerate() {
+        let img = render(&refs, &f.camera)?;
+        let s = Metrics::compare(&img, &f.image, lpips)
+            .with_context(|| format!("measuring held-out view {i}"))?;
+        sum.ssim += s.ssim;
+        sum.psnr += s.psnr.min(100.0);
+        lp += s.lpips.unwrap_or(0.0);
+        if let Some(dir) = &opts.renders {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("{}: cannot create", dir.display()))?;
+            let path = dir.join(format!("test_{i}.png"));
+            img.save(&path)
+                .with_context(|| format!("{}: cannot write", path.display()))?;
+        }
+        progress.step(&format!("view {i}"));
+    }
+    let n = test.len().max(1) as f64;
+    Ok(SceneQuality {
+        ssim: sum.ssim / n,
+        psnr: sum.psnr / n,
+        lpips: lpips.map(|_| lp / n),
+        views: test.len(),
+    })
+}
+
+fn render(assets: &[&crate::asset::Asset], camera: &Camera) -> anyhow::Result<RgbaImage> {
+    try_render_scene(assets, camera, &DrawOptions::default())
+        .map(|(img, _)| img)
+        .map_err(|e| anyhow::anyhow!("the renderer rejected a held-out camera: {e}"))
+}
+
+/// Stage 4: the realised scene on a device's turntable.
+pub fn simulate_on(
+    realised: &Realised,
+    device: &Device,
+    opts: &Options,
+) -> anyhow::Result<Simulation> {
+    // A scene over the hard limit is never drawn: skip loading its assets.
+    let names: Vec<String> = realised.objects.iter().map(|o| o.name.clone()).collect();
+    let bytes: Vec<u64> = realised.objects.iter().map(|o| o.file_bytes).collect();
+    let over = device
+        .load_check(nerflex_core::units::Bytes(bytes.iter().sum()))
+        .is_err();
+    let assets = if over {
+        Vec::new()
+    } else {
+        realised
+            .objects
+            .iter()
+            .map(|o| {
+                crate::asset::Asset::load(&o.asset)
+                    .with_context(|| format!("loading {}", o.asset.display()))
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?
+    };
+    let scene = AssetScene::new(names.clone(), assets, bytes.clone());
+    let items = if over {
+        names
+            .iter()
+            .zip(&bytes)
+            .map(|(n, &b)| simulate::LoadItem {
+                name: n.clone(),
+                file_bytes: b,
+                resident_bytes: 0,
+            })
+            .collect()
+    } else {
+        scene.load_items()
+    };
+    let source: &dyn simulate::CoverageSource = if over { &NoCoverage(names.len()) } else { &scene };
+    let tt = Turntable::new(opts.turntable, device.viewer(), source);
+    simulate::simulate(device, &items, &tt, opts.sim)
+}
+
+/// The coverage of a scene that never loads (never asked for).
+struct NoCoverage(usize);
+
+impl simulate::CoverageSource for NoCoverage {
+    fn objects(&self) -> usize {
+        self.0
+    }
+    fn coverage(
+        &self,
+        _: usize,
+        _: &Camera,
+    ) -> anyhow::Result<simulate::ViewCoverage> {
+        bail!("coverage of a scene that failed to load")
+    }
+}

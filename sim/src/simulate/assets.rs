@@ -1,0 +1,116 @@
+//! Baked assets as the simulator's scene: their coverage comes from the
+//! host renderer's coverage-only pass ([`crate::render::coverage_scene`]),
+//! their load items from their files and decoded sizes.
+//!
+//! On disk a planned scene's assets live at
+//! `ROOT/<object>/g<g>_p<p>/` in the MobileNeRF export layout
+//! ([`asset_dir`]); `nerflex run` writes them there.
+
+use super::timeline::LoadItem;
+use super::turntable::{CoverageSource, ViewCoverage};
+use crate::asset::Asset;
+use crate::baselines::Plan;
+use crate::camera::Camera;
+use crate::device::resident_bytes;
+use anyhow::Context as _;
+use std::path::{Path, PathBuf};
+
+/// Where the asset of `object` at (g, p) lives under `root`.
+pub fn asset_dir(root: &Path, object: &str, g: u32, p: u32) -> PathBuf {
+    root.join(object).join(format!("g{g}_p{p}"))
+}
+
+/// The objects of a scene, in load order, with their data sizes.
+pub struct AssetScene {
+    /// Object names.
+    pub names: Vec<String>,
+    /// The assets.
+    pub assets: Vec<Asset>,
+    /// File bytes of each object's data (what the limits count).
+    pub file_bytes: Vec<u64>,
+}
+
+impl AssetScene {
+    /// Assets in memory with their data sizes (e.g. from the baker).
+    pub fn new(names: Vec<String>, assets: Vec<Asset>, file_bytes: Vec<u64>) -> Self {
+        Self {
+            names,
+            assets,
+            file_bytes,
+        }
+    }
+
+    /// Loads the assets of a plan from `root` ([`asset_dir`] layout). The data
+    /// size of each object is the bytes of its files on disk.
+    pub fn load_plan(plan: &Plan, root: &Path) -> anyhow::Result<AssetScene> {
+        let mut names = Vec::new();
+        let mut assets = Vec::new();
+        let mut bytes = Vec::new();
+        for o in &plan.objects {
+            let dir = asset_dir(root, &o.name, o.g, o.p);
+            if !dir.is_dir() {
+                anyhow::bail!(
+                    "{}: no baked asset for `{}` at (g {}, p {}) (`nerflex run` writes assets in this layout; `nerflex bake --out` writes one)",
+                    dir.display(),
+                    o.name,
+                    o.g,
+                    o.p
+                );
+            }
+            let a = Asset::load(&dir).with_context(|| format!("loading {}", dir.display()))?;
+            names.push(o.name.clone());
+            bytes.push(a.file_bytes);
+            assets.push(a);
+        }
+        Ok(AssetScene {
+            names,
+            assets,
+            file_bytes: bytes,
+        })
+    }
+
+    /// The load items, one per object: its file bytes, and resident bytes =
+    /// decoded atlas pages + vertex buffers.
+    pub fn load_items(&self) -> Vec<LoadItem> {
+        self.assets
+            .iter()
+            .zip(&self.names)
+            .zip(&self.file_bytes)
+            .map(|((a, name), &file_bytes)| {
+                let atlas: u64 = a.shapes.iter().map(|s| s.atlas.gpu_bytes()).sum();
+                let quads: u64 = a.shapes.iter().map(|s| s.quads.len() as u64).sum();
+                LoadItem {
+                    name: name.clone(),
+                    file_bytes,
+                    resident_bytes: resident_bytes(atlas, quads).0,
+                }
+            })
+            .collect()
+    }
+
+    /// Quads of all objects.
+    pub fn quads(&self) -> u64 {
+        self.assets
+            .iter()
+            .flat_map(|a| &a.shapes)
+            .map(|s| s.quads.len() as u64)
+            .sum()
+    }
+}
+
+impl CoverageSource for AssetScene {
+    fn objects(&self) -> usize {
+        self.assets.len()
+    }
+
+    fn coverage(&self, loaded: usize, camera: &Camera) -> anyhow::Result<ViewCoverage> {
+        let refs: Vec<&Asset> = self.assets.iter().take(loaded).collect();
+        let c = crate::render::coverage_scene(&refs, camera)
+            .map_err(|e| anyhow::anyhow!("coverage pass: {e}"))?;
+        Ok(ViewCoverage {
+            quads_drawn: u64::from(c.quads_drawn),
+            quads_visible: u64::from(c.quads_visible),
+            pixels_covered: c.pixels_covered,
+        })
+    }
+}
