@@ -22,6 +22,8 @@ count() { # mode function -> prints "Ir"
 
 echo "| operation | instructions (Ir) | result |"
 echo "|---|---|---|"
+ir=$(count profiles count_profiles)
+echo "| five fitted profiles → 5 × 45 configurations (fixed-point profiler) | $ir ($((ir / 225)) per configuration) | $(head -1 "$out/profiles.txt") … |"
 for dev in iphone13 pixel4; do
     ir=$(count "solve-$dev" count_solve)
     echo "| one MCK solve, 5 objects × 45 configurations, $dev budget in 0.1 MB units | $ir | $(cat "$out/solve-$dev.txt") |"

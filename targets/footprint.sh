@@ -28,8 +28,8 @@ field() { # line-record key <<< output
     awk -v r="$1" -v k="$2" '$1 == r { for (i = 2; i <= NF; i++) { split($i, kv, "="); if (kv[1] == k) print kv[2] } }'
 }
 
-echo "| target | core | flash (text + rodata + vectors) | static RAM (data + bss) | of which solver tables | peak stack: solver | peak stack: one pixel | peak stack: 16×16 tile |"
-echo "|---|---|---|---|---|---|---|---|"
+echo "| target | core | flash (text + rodata + vectors) | static RAM (data + bss) | of which solver tables | peak stack: profiler (5 tables) | peak stack: solver | peak stack: one pixel | peak stack: 16×16 tile |"
+echo "|---|---|---|---|---|---|---|---|---|"
 breakdown=""
 for t in thumbv7em-none-eabihf thumbv6m-none-eabi; do
     cargo build --release --locked -q ${opt[@]+"${opt[@]}"} --target "$t"
@@ -55,7 +55,7 @@ for t in thumbv7em-none-eabihf thumbv6m-none-eabi; do
             s[c] += sz; all += sz }
             END { printf "| `%s` | %d B | %d B | %d B | %d B |\n", t, s[1], s[2], s[3], s[4] + text - all }')
     breakdown+=$'\n'
-    echo "| \`$t\` | $core | $((vt + tx + ro + da)) B ($tx + $ro + $vt$( [ "$da" != 0 ] && echo " + $da")) | $((da + bs + un)) B | $(field memory solver_static_bytes <<<"$run") B | $(field stack solver_bytes <<<"$run") B | $(field stack shade_pixel_bytes <<<"$run") B | $(field stack shade_tile_bytes <<<"$run") B |"
+    echo "| \`$t\` | $core | $((vt + tx + ro + da)) B ($tx + $ro + $vt$( [ "$da" != 0 ] && echo " + $da")) | $((da + bs + un)) B | $(field memory solver_static_bytes <<<"$run") B | $(field stack profile_bytes <<<"$run") B | $(field stack solver_bytes <<<"$run") B | $(field stack shade_pixel_bytes <<<"$run") B | $(field stack shade_tile_bytes <<<"$run") B |"
 done
 
 echo

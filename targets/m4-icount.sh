@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Instructions executed on the emulated Cortex-M4 (and the Cortex-M0 build)
-# per call of the firmware's MCK solve and MLP shade.
+# per call of the firmware's profiler step, MCK solve and MLP shade.
 # Usage: targets/m4-icount.sh [target...]   (default: both Cortex-M targets)
 #
 # QEMU runs the firmware one instruction per translation block
@@ -26,6 +26,7 @@ targets=("$@")
 
 # name in the table | symbol (demangled, without hash)
 funcs=(
+    "five profiles → 5 × 45 configurations|nerflex_firmware_m4::evaluate_profiles"
     "one MCK solve (5 × 45, 0.1 MB units), both budgets|nerflex_firmware_m4::plan"
     "one shaded pixel (FixedMlp::shade), 257 calls|nerflex_core::shader::FixedMlp::shade"
 )

@@ -208,15 +208,15 @@ fn profiles_source(manifest: &Path, src: &mut String) -> Result<(), BoxError> {
                     .and_then(|x| x.as_f64())
                     .ok_or_else(|| at(&format!(".profile.{curve}.{k}: missing or not a number")))
             };
-            let power = match c.get("g_power").or_else(|| p.get("g_power")) {
-                None => 3,
-                Some(x) => x
-                    .as_u64()
-                    .filter(|g| *g == 2 || *g == 3)
-                    .ok_or_else(|| at(".profile.g_power: not 2 or 3"))?,
+            let family = match c.get("g_power").map(|x| x.as_u64()) {
+                None | Some(Some(3)) => "Volume",
+                Some(Some(2)) => "Surface",
+                Some(_) => {
+                    return Err(at(&format!(".profile.{curve}.g_power: must be 2 or 3")));
+                }
             };
             Ok(format!(
-                "FitParams {{ k: {:?}, a: {:?}, b: {:?}, m: {:?}, g_power: {power} }}",
+                "Params {{ k: {:?}, a: {:?}, b: {:?}, m: {:?}, family: Family::{family} }}",
                 num("k")?,
                 num("a")?,
                 num("b")?,

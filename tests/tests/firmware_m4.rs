@@ -1,8 +1,9 @@
 //! The Cortex-M4 firmware (`targets/cortex-m4`) under QEMU against the host
 //! build of the same core: it builds the firmware, runs it on QEMU's
 //! `mps2-an386` machine, parses its line output and checks that the board
-//! computed exactly what the host computes — the same configuration tables,
-//! the same plans (choices and totals) and bit-identical shaded pixels.
+//! computed exactly what the host computes — the same configuration tables
+//! (fitted profiles evaluated by the fixed-point profiler), the same plans
+//! (choices and totals) and bit-identical shaded pixels.
 //!
 //! The Cortex-M0 build (`thumbv6m-none-eabi`, run on the same machine: ARMv6-M
 //! is a subset of ARMv7-M) is checked the same way. Without
@@ -13,8 +14,9 @@
 mod workload;
 
 use nerflex_core::mck::{Config, Solver};
+use nerflex_core::profiler::ConfigSpace;
 use nerflex_core::shader::FixedMlp;
-use nerflex_core::units::QualityQ;
+use nerflex_core::units::{Bytes, QualityQ};
 use std::collections::BTreeMap;
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -194,24 +196,44 @@ struct HostObject {
     table: Vec<Config>,
 }
 
-/// The host's configuration tables for the firmware's five profiles.
+/// The host's configuration tables for the firmware's five profiles: the
+/// same fitted parameters evaluated by the host build of the core's
+/// fixed-point profiler.
 fn host_objects() -> Vec<HostObject> {
     let path = repo_root().join("examples/scenes/five_objects_profile.json");
     let scene = nerflex_sim::scene_file::load(&path).expect("the example scene loads");
     scene
         .objects
         .iter()
-        .map(|o| HostObject {
-            name: o.name.clone(),
-            gp: o.configs.iter().map(|c| (c.g, c.p)).collect(),
-            table: o
-                .configs
-                .iter()
-                .map(|c| Config {
-                    size: c.size,
-                    quality: QualityQ::from_f64(c.quality).expect("quality in [0, 1]"),
-                })
-                .collect(),
+        .map(|o| {
+            let prof = o.profile.as_ref().expect("the example is in profile form");
+            let space = ConfigSpace::new(&prof.g, &prof.p).expect("(g, p) lists");
+            let mut table = vec![
+                Config {
+                    size: Bytes(0),
+                    quality: QualityQ::ZERO
+                };
+                space.len()
+            ];
+            prof.fixed()
+                .expect("profile in range")
+                .fill_table(&space, &mut table)
+                .expect("profile evaluates");
+            // The planner's scene loader agrees with the direct evaluation.
+            for (c, t) in o.configs.iter().zip(&table) {
+                assert_eq!(c.size, t.size, "{}: scene_file size", o.name);
+                assert_eq!(
+                    QualityQ::from_f64(c.quality),
+                    Ok(t.quality),
+                    "{}: scene_file quality",
+                    o.name
+                );
+            }
+            HostObject {
+                name: o.name.clone(),
+                gp: space.iter().collect(),
+                table,
+            }
         })
         .collect()
 }
@@ -362,7 +384,12 @@ fn check(target: &str) {
 
     // 4. The measured costs are present and plausible.
     let stack = &records(&lines, "stack")[0];
-    for key in ["solver_bytes", "shade_pixel_bytes", "shade_tile_bytes"] {
+    for key in [
+        "profile_bytes",
+        "solver_bytes",
+        "shade_pixel_bytes",
+        "shade_tile_bytes",
+    ] {
         let v = stack.num(key); // a `>=` (window exhausted) fails to parse
         assert!(v > 0 && v < 64 * 1024, "{key} = {v}");
     }

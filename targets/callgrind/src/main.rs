@@ -3,6 +3,8 @@
 //! counts the instructions of exactly that operation (see
 //! `targets/callgrind.sh`):
 //!
+//! - `profiles`: the five fitted profiles evaluated into 5 × 45
+//!   configurations by the fixed-point profiler (`count_profiles`);
 //! - `solve-iphone13`, `solve-pixel4`: one exact MCK solve of the 5-object,
 //!   45-configuration plan in 0.1 MB units (`count_solve`);
 //! - `pixel`: one shaded pixel, the fixed-point lego MLP alone
@@ -18,18 +20,19 @@ mod workload;
 
 #[allow(clippy::all, dead_code)]
 mod generated {
-    use super::config;
-    use crate::workload::{FitParams, ObjectProfile};
-    use nerflex_core::mck::Config;
+    use crate::workload::ObjectProfile;
+    use nerflex_core::profiler::{Family, Params};
     use nerflex_core::shader::{FixedLayer, FixedMlp};
     include!(concat!(env!("OUT_DIR"), "/generated.rs"));
 }
 
 use nerflex_core::mck::{Config, MckError, Solver};
+use nerflex_core::profiler::ProfileError;
 use nerflex_core::shader::{FixedMlp, ViewDir};
 use nerflex_core::units::{Bytes, QualityQ};
 use std::hint::black_box;
 use std::process::ExitCode;
+use workload::ObjectProfile;
 use workload::{Device, CONFIGS, OBJECTS, TILE_H, TILE_W, UNIT, UNITS};
 
 type PaperSolver = Solver<OBJECTS, CONFIGS, UNITS>;
@@ -42,6 +45,14 @@ const fn config(size_bytes: u64, quality_q31: u32) -> Config {
             None => QualityQ::ZERO,
         },
     }
+}
+
+#[inline(never)]
+fn count_profiles(
+    profiles: &[ObjectProfile; OBJECTS],
+    tables: &mut [[Config; CONFIGS]; OBJECTS],
+) -> Result<(), (usize, ProfileError)> {
+    workload::evaluate_profiles(profiles, tables)
 }
 
 #[inline(never)]
@@ -67,8 +78,29 @@ fn count_tile(mlp: &FixedMlp, out: &mut [[u8; 3]]) {
 fn main() -> ExitCode {
     let mode = std::env::args().nth(1).unwrap_or_default();
     let mlp = black_box(&generated::MLP);
-    let tables = black_box(&generated::TABLES);
+    let profiles = black_box(&generated::PROFILES);
+    let mut tables = Box::new([[config(0, 0); CONFIGS]; OBJECTS]);
+    let evaluated = if mode == "profiles" {
+        count_profiles(profiles, &mut tables)
+    } else {
+        workload::evaluate_profiles(profiles, &mut tables)
+    };
+    if let Err((i, e)) = evaluated {
+        eprintln!("profile of object {i}: {e}");
+        return ExitCode::FAILURE;
+    }
+    let tables = black_box(&*tables);
     match mode.as_str() {
+        "profiles" => {
+            for (p, t) in profiles.iter().zip(tables) {
+                println!(
+                    "table name={} configs={} fnv={:08x}",
+                    p.name,
+                    t.len(),
+                    workload::table_hash(t)
+                );
+            }
+        }
         "solve-iphone13" | "solve-pixel4" => {
             let name = mode.trim_start_matches("solve-");
             let Some(device) = workload::DEVICES.iter().find(|d| d.name == name) else {
@@ -105,7 +137,7 @@ fn main() -> ExitCode {
             );
         }
         _ => {
-            eprintln!("usage: nerflex-count solve-iphone13|solve-pixel4|pixel|tile");
+            eprintln!("usage: nerflex-count profiles|solve-iphone13|solve-pixel4|pixel|tile");
             return ExitCode::FAILURE;
         }
     }

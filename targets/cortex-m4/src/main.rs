@@ -2,15 +2,14 @@
 //! on board, printed over semihosting in a line format that
 //! `tests/tests/firmware_m4.rs` parses and compares with the host build.
 //!
-//! 1. the five objects' configuration tables (5 × 45 configurations),
-//!    evaluated on board from their fitted profiles by the fixed-point
-//!    `nerflex_core::profiler` (the build script embeds only the parameters);
+//! 1. the five objects' fitted profiles evaluated into configuration
+//!    tables (5 × 45 configurations) by the fixed-point profiler;
 //! 2. the exact MCK plan for the iPhone 13 (240 MB) and Pixel 4 (150 MB)
 //!    budgets in 0.1 MB units, with `Solver<5, 45, 2400>` in a static;
 //! 3. a 16 × 16 tile of texels shaded by the fixed-point lego MLP
 //!    (converted from `lego_mlp.json` at build time);
-//! 4. the peak stack of the solver and the shader (stack painting) and the
-//!    sizes of the tables.
+//! 4. the peak stack of the profiler, the solver and the shader (stack
+//!    painting) and the sizes of the tables.
 //!
 //! Every line is `<record> key=value …`. The run ends with `done` and exit
 //! status 0; any error prints `error …` and exits 1, and so does a panic
@@ -30,7 +29,7 @@ use cortex_m as _; // critical-section implementation
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use cortex_m_semihosting::{debug, hprintln, nr, syscall1};
 use nerflex_core::mck::{Config, MckError, Solver};
-use nerflex_core::profiler::{ConfigSpace, Family, Params, Profile, ProfileError};
+use nerflex_core::profiler::ProfileError;
 use nerflex_core::shader::FixedMlp;
 use nerflex_core::units::{Bytes, QualityQ};
 use panic_semihosting as _;
@@ -38,7 +37,8 @@ use workload::{Device, ObjectProfile, CONFIGS, OBJECTS, TILE_H, TILE_W, UNIT, UN
 
 #[allow(clippy::all, dead_code)]
 mod generated {
-    use crate::workload::{FitParams, ObjectProfile};
+    use crate::workload::ObjectProfile;
+    use nerflex_core::profiler::{Family, Params};
     use nerflex_core::shader::{FixedLayer, FixedMlp};
     include!(concat!(env!("OUT_DIR"), "/generated.rs"));
 }
@@ -68,37 +68,14 @@ struct Plan {
 }
 
 #[inline(never)]
-/// The fitted curve in the core's parameter type.
-fn params(f: &workload::FitParams) -> Params {
-    // The build script accepts only the two families' powers (2 and 3).
-    let family = if f.g_power == 2 {
-        Family::Surface
-    } else {
-        Family::Volume
-    };
-    Params {
-        k: f.k,
-        a: f.a,
-        b: f.b,
-        m: f.m,
-        family,
-    }
-}
-
-/// Evaluates every object's fitted profile over its g × p grid (g-major, as
-/// the host's scene file does) into the solver's tables, in fixed point.
-fn evaluate_tables(
+fn evaluate_profiles(
     profiles: &[ObjectProfile; OBJECTS],
-    out: &mut [[Config; CONFIGS]; OBJECTS],
-) -> Result<(), ProfileError> {
-    for (table, p) in out.iter_mut().zip(profiles) {
-        let profile = Profile::from_params(&params(&p.size), &params(&p.quality))?;
-        let space = ConfigSpace::new(&p.grids, &p.patches)?;
-        profile.fill_table(&space, table)?;
-    }
-    Ok(())
+    tables: &mut [[Config; CONFIGS]; OBJECTS],
+) -> Result<(), (usize, ProfileError)> {
+    workload::evaluate_profiles(profiles, tables)
 }
 
+#[inline(never)]
 fn plan(
     solver: &mut PaperSolver,
     tables: &[[Config; CONFIGS]; OBJECTS],
@@ -159,7 +136,7 @@ fn main() -> ! {
     // cortex-m-rt turns these into `&'static mut`, placed in .bss / .data.
     static mut SOLVER: PaperSolver = PaperSolver::new();
     static mut PIXEL_BUF: [[u8; 3]; PIXELS] = [[0; 3]; PIXELS];
-    static mut TABLES: [[Config; CONFIGS]; OBJECTS] = [[config(0, 0); CONFIGS]; OBJECTS];
+    static mut TABLE_BUF: [[Config; CONFIGS]; OBJECTS] = [[config(0, 0); CONFIGS]; OBJECTS];
 
     if cmdline_has(b"panic") {
         panic!("deliberate panic (semihosting command line `panic`)");
@@ -174,12 +151,14 @@ fn main() -> ! {
         env!("FIRMWARE_TARGET")
     );
 
-    // 1. Configuration tables.
+    // 1. Configuration tables: the fitted profiles evaluated on board.
     let profiles: &[ObjectProfile; OBJECTS] = &generated::PROFILES;
-    if let Err(e) = evaluate_tables(profiles, TABLES) {
-        fail("profile", &e);
+    let (r, profile_peak) = stack::measure(|| evaluate_profiles(profiles, TABLE_BUF));
+    if let Err((i, e)) = r {
+        hprintln!("error profile object={}", i);
+        fail(profiles.get(i).map_or("profile", |p| p.name), &e);
     }
-    let tables: &[[Config; CONFIGS]; OBJECTS] = TABLES;
+    let tables: &[[Config; CONFIGS]; OBJECTS] = TABLE_BUF;
     for (i, (t, p)) in tables.iter().zip(profiles).enumerate() {
         let (min, max) = t.iter().fold((u64::MAX, 0), |(lo, hi), c| {
             (lo.min(c.size.0), hi.max(c.size.0))
@@ -288,7 +267,8 @@ fn main() -> ! {
     // 4. Costs.
     let (_, pixel_peak) = shade_one(mlp, 3, 5);
     hprintln!(
-        "stack solver_bytes={} shade_pixel_bytes={} shade_tile_bytes={}",
+        "stack profile_bytes={} solver_bytes={} shade_pixel_bytes={} shade_tile_bytes={}",
+        profile_peak,
         solver_peak,
         pixel_peak,
         tile_peak

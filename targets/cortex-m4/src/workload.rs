@@ -4,8 +4,9 @@
 //! (`targets/callgrind/`), so that board and host run exactly the same
 //! problem.
 //!
-//! - the plan: 5 objects × 45 configurations, the iPhone 13 (240 MB) and
-//!   Pixel 4 (150 MB) budgets in 0.1 MB units (2400 units);
+//! - the plan: 5 fitted profiles evaluated into 5 × 45 configurations by
+//!   the fixed-point profiler, the iPhone 13 (240 MB) and Pixel 4 (150 MB)
+//!   budgets in 0.1 MB units (2400 units);
 //! - the tile: 16 × 16 texels with deterministic feature values and view
 //!   directions, shaded by the fixed-point MLP;
 //! - the fallback weight set used when the real `lego_mlp.json` is absent;
@@ -16,6 +17,7 @@
 #![allow(dead_code)] // each includer uses a different part
 
 use nerflex_core::mck::Config;
+use nerflex_core::profiler::{ConfigSpace, Params, Profile, ProfileError};
 use nerflex_core::shader::{FixedLayer, FixedMlp, MlpWeights, ViewDir};
 use nerflex_core::units::Bytes;
 
@@ -32,35 +34,34 @@ pub const UNIT: Bytes = Bytes(100_000);
 /// Budget units of the largest budget (240 MB / 0.1 MB).
 pub const UNITS: usize = 2400;
 
-/// One fitted curve as the scene file stores it: `k`, `a`, `b`, `m` and
-/// the power of `g + a` (3: the paper's volume form).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct FitParams {
-    /// Scale.
-    pub k: f64,
-    /// Offset added to g.
-    pub a: f64,
-    /// Offset added to p.
-    pub b: f64,
-    /// Constant (size, bytes) or asymptote (quality, SSIM).
-    pub m: f64,
-    /// Power of `g + a`.
-    pub g_power: u32,
-}
-
 /// One object's fitted profile and its configuration space.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ObjectProfile {
     /// Object name.
     pub name: &'static str,
     /// Size model `S = k·(g+a)^e·(p+b)² + m`, bytes.
-    pub size: FitParams,
+    pub size: Params,
     /// Quality model `Q = m − k/((g+a)^e·(p+b)²)`, SSIM.
-    pub quality: FitParams,
+    pub quality: Params,
     /// Grid resolutions.
     pub grids: [u32; GRIDS],
     /// Patch sizes.
     pub patches: [u32; PATCHES],
+}
+
+/// Evaluates the fitted profiles into configuration tables with the core's
+/// fixed-point profiler, exactly as the firmware does on board. On error:
+/// the object's index and the cause.
+pub fn evaluate_profiles(
+    profiles: &[ObjectProfile; OBJECTS],
+    tables: &mut [[Config; CONFIGS]; OBJECTS],
+) -> Result<(), (usize, ProfileError)> {
+    for (i, (p, t)) in profiles.iter().zip(tables.iter_mut()).enumerate() {
+        let profile = Profile::from_params(&p.size, &p.quality).map_err(|e| (i, e))?;
+        let space = ConfigSpace::new(&p.grids, &p.patches).map_err(|e| (i, e))?;
+        profile.fill_table(&space, t).map_err(|e| (i, e))?;
+    }
+    Ok(())
 }
 
 /// A device budget.
