@@ -19,7 +19,12 @@ pub struct Args {
     #[arg(long, value_name = "FILE")]
     pub scene: PathBuf,
     /// A plan (JSON, as `nerflex plan --json` prints it).
-    #[arg(long, value_name = "FILE", conflicts_with = "method", required_unless_present = "method")]
+    #[arg(
+        long,
+        value_name = "FILE",
+        conflicts_with = "method",
+        required_unless_present = "method"
+    )]
     pub plan: Option<PathBuf>,
     /// Or: plan the scene now with this method for the device's budget.
     #[arg(long, value_enum)]
@@ -89,10 +94,14 @@ pub fn turntable_spec(
 }
 
 fn read_plan(path: &Path) -> anyhow::Result<Plan> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    let plan: Plan = serde_json::from_str(&text)
-        .with_context(|| format!("{}: not a plan (as `nerflex plan --json` writes)", path.display()))?;
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    let plan: Plan = serde_json::from_str(&text).with_context(|| {
+        format!(
+            "{}: not a plan (as `nerflex plan --json` writes)",
+            path.display()
+        )
+    })?;
     if plan.objects.is_empty() {
         bail!("{}: objects: the plan has no objects", path.display());
     }
@@ -108,7 +117,10 @@ pub fn summary(sim: &Simulation, what: &str) -> String {
         Bytes(sim.resident_bytes).as_mb()
     );
     match &sim.load_failure {
-        Some(f) => s.push_str(&format!("load FAILED: {f}; FPS 0 over {} frames\n", sim.frames.len())),
+        Some(f) => s.push_str(&format!(
+            "load FAILED: {f}; FPS 0 over {} frames\n",
+            sim.frames.len()
+        )),
         None => {
             if sim.over_soft_limit {
                 s.push_str("over the soft memory limit: frames slowed by the device's penalty\n");
@@ -131,12 +143,20 @@ pub fn summary(sim: &Simulation, what: &str) -> String {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let device = Device::lookup(&args.device)?;
     let scene = scene_file::load(&args.scene)?;
-    let spec = turntable_spec(args.angles, args.coverage_px, args.elevation_deg, args.distance)?;
+    let spec = turntable_spec(
+        args.angles,
+        args.coverage_px,
+        args.elevation_deg,
+        args.distance,
+    )?;
     if args.frames == 0 {
         bail!("--frames: must be at least 1");
     }
     if !(args.period_s.is_finite() && args.period_s > 0.0) {
-        bail!("--period-s: must be a positive number of seconds, got {}", args.period_s);
+        bail!(
+            "--period-s: must be a positive number of seconds, got {}",
+            args.period_s
+        );
     }
     let plan = match (&args.plan, args.method) {
         (Some(p), _) => read_plan(p)?,
