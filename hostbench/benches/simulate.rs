@@ -23,7 +23,8 @@ impl CoverageSource for Fixed {
     fn coverage(&self, loaded: usize, _: &Camera) -> anyhow::Result<ViewCoverage> {
         let k = loaded as u64;
         Ok(ViewCoverage {
-            quads_drawn: 150_000 * k,
+            quads_in_view: 150_000 * k,
+            quads_drawn: 120_000 * k,
             quads_visible: 40_000 * k,
             pixels_covered: 1_500 * k,
         })
@@ -54,5 +55,25 @@ fn frame_loop(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, frame_loop);
+/// One measured turntable angle of the real drums shape at the simulator's
+/// default coverage width (the coverage pass plus the quads-in-view count).
+fn one_angle(c: &mut Criterion) {
+    let Some(data) = nerflex_sim::data::require_data("simulate bench") else {
+        return;
+    };
+    let asset = nerflex_sim::asset::Asset::load(&data.join("mobilenerf/drums")).expect("drums");
+    let scene = nerflex_sim::simulate::assets::AssetScene::new(
+        vec!["drums".into()],
+        vec![asset],
+        vec![0],
+    );
+    let spec = TurntableSpec::DEFAULT;
+    let viewer = nerflex_sim::device::Viewer::DEFAULT;
+    let cam = spec.camera(5, viewer);
+    c.bench_function("simulate/one angle of drums (160 px coverage + quads in view)", |b| {
+        b.iter(|| black_box(scene.coverage(1, &cam).expect("coverage")))
+    });
+}
+
+criterion_group!(benches, frame_loop, one_angle);
 criterion_main!(benches);

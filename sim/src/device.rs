@@ -39,9 +39,9 @@
 //!
 //! # The model (see `docs/device.md`)
 //!
-//! - **Frame time** `t = overhead + quads_drawn / quads_per_s +
+//! - **Frame time** `t = overhead + quads / quads_per_s +
 //!   pixels_shaded · 480 / mac_per_s` ([`Device::frame_cost`]): every quad
-//!   the viewer draws is set up and rasterised into the deferred G-buffer,
+//!   in view is set up and rasterised into the deferred G-buffer,
 //!   then every covered pixel runs the 11→16→16→3 MLP once
 //!   ([`MLP_MACS_PER_PIXEL`] = 11·16 + 16·16 + 16·3 multiply-adds).
 //! - **FPS** of a frame is `min(1/t, refresh_hz)`; above the soft limit
@@ -348,7 +348,7 @@ impl Device {
     /// counts as none; infinite work takes forever.
     pub fn frame_cost(&self, work: &FrameWork) -> FrameCost {
         let t = &self.throughput;
-        let quads = work.quads_drawn.max(0.0);
+        let quads = work.quads.max(0.0);
         let pixels = work.pixels_shaded.max(0.0);
         FrameCost {
             overhead_s: t.frame_overhead_ms / 1e3,
@@ -417,8 +417,9 @@ pub fn resident_bytes(atlas_bytes: u64, quads: u64) -> Bytes {
 /// The work of one frame at the viewer's resolution.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct FrameWork {
-    /// Quads projected onto the image (set up and rasterised).
-    pub quads_drawn: f64,
+    /// Quads set up and rasterised: every quad in the view (the viewer
+    /// draws whole meshes; a quad smaller than a pixel still costs its setup).
+    pub quads: f64,
     /// Covered pixels, each shaded once by the MLP.
     pub pixels_shaded: f64,
 }
@@ -519,11 +520,13 @@ mod tests {
     #[test]
     fn errors_name_the_field() {
         let text = include_str!("../devices/pixel4.toml");
-        let e = Device::from_toml_str(
-            &text.replace("mac_per_s = 2.0e11", "mac_per_s = -1.0"),
-            "x.toml",
-        )
-        .unwrap_err();
+        let mac_line = text
+            .lines()
+            .find(|l| l.starts_with("mac_per_s"))
+            .unwrap()
+            .to_string();
+        let e = Device::from_toml_str(&text.replace(&mac_line, "mac_per_s = -1.0"), "x.toml")
+            .unwrap_err();
         assert_eq!(
             e.to_string(),
             "x.toml: throughput.mac_per_s: must be a positive number, got -1"
@@ -548,8 +551,7 @@ mod tests {
                 .starts_with("x.toml: budget_mb: missing field `budget_mb`"),
             "{e}"
         );
-        let e =
-            Device::from_toml_str(&text.replace("mac_per_s = 2.0e11", ""), "x.toml").unwrap_err();
+        let e = Device::from_toml_str(&text.replace(&mac_line, ""), "x.toml").unwrap_err();
         assert!(
             e.to_string()
                 .starts_with("x.toml: throughput.mac_per_s: missing field"),

@@ -1,1 +1,497 @@
-//! (module under construction)
+//! The NeRFlex paper's evaluation, regenerated from scratch: Scenes 1–4
+//! (built-in) × {iPhone 13, Pixel 4} × {Single-NeRF, Block-NeRF, NeRFlex
+//! (DP), NeRFlex-Fairness, NeRFlex-SLSQP}: SSIM / PSNR / LPIPS, data size,
+//! mean FPS and load failures; Scene 4's per-object quality and size
+//! allocation; the overhead breakdown (segmentation, profiler, DP); the FPS
+//! curves of Scene 3; and the calibration check of the device model. The
+//! same on the real lego + chair capture (composed side by side).
+//!
+//! - [`calibrate`]: the one throughput factor per device;
+//! - [`plots`]: the PNG figures;
+//! - [`report`]: the Markdown report.
+//!
+//! Everything measured goes into `eval.json`; the Markdown and the plots
+//! are drawn from it.
+
+pub mod calibrate;
+pub mod plots;
+pub mod report;
+
+use crate::baselines::Method;
+use crate::device::Device;
+use crate::metrics::Lpips;
+use crate::pipeline::{
+    method_plan, prepare, realise, simulate_devices, Input, Options, Prepared, Progress, Realised,
+    RealisedObject, SceneQuality, Timings,
+};
+use crate::procedural::Preset;
+use crate::simulate::output::write_text;
+use crate::simulate::Simulation;
+use anyhow::Context as _;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The methods of the paper's comparison, in the order reported.
+pub const METHODS: [Method; 5] = [
+    Method::Single,
+    Method::Block,
+    Method::Dp,
+    Method::Fairness,
+    Method::Slsqp,
+];
+
+/// The paper's figures the device model is calibrated against: NeRFlex (DP)
+/// on Scene 3, mean FPS per device.
+pub const CALIBRATION_TARGETS: [(&str, f64); 2] = [("iphone13", 35.0), ("pixel4", 25.0)];
+
+/// The paper's overhead breakdown (seconds, twenty training images).
+pub const PAPER_OVERHEAD_S: [(&str, f64); 3] =
+    [("segmentation", 3.8), ("profiler", 0.277), ("DP", 1.87)];
+
+/// What to evaluate.
+#[derive(Clone, Debug)]
+pub struct EvalOptions {
+    /// Pipeline settings (sizes, views, sample points, store).
+    pub pipeline: Options,
+    /// Built-in scenes.
+    pub scenes: Vec<Preset>,
+    /// Devices.
+    pub devices: Vec<Device>,
+    /// The real single-object captures to compose (lego, chair), if any.
+    pub real: Vec<PathBuf>,
+    /// Image side of the composed real capture.
+    pub real_size: u32,
+    /// The scene whose FPS curves are kept and plotted (the paper: Scene 3).
+    pub fps_scene: Preset,
+}
+
+/// One (scene, device, method).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Row {
+    /// Scene.
+    pub scene: String,
+    /// Device.
+    pub device: String,
+    /// Method.
+    pub method: Method,
+    /// Why there is no plan (e.g. SLSQP found none), if so.
+    pub error: Option<String>,
+    /// The budget, bytes.
+    pub budget_bytes: u64,
+    /// Whether the planner's sizes fit the budget.
+    pub planned_feasible: bool,
+    /// Total size the planner predicted, bytes (for Single/Block: baked).
+    pub predicted_bytes: u64,
+    /// Total size of the baked files, bytes.
+    pub file_bytes: u64,
+    /// Seconds the planner took.
+    pub plan_s: f64,
+    /// The objects as baked.
+    pub objects: Vec<RealisedObject>,
+    /// Whole-scene quality on the held-out views.
+    pub quality: Option<SceneQuality>,
+    /// Why the scene did not load on the device, if so.
+    pub load_failure: Option<String>,
+    /// Whether the data is over the device's soft limit.
+    pub over_soft_limit: bool,
+    /// Mean FPS over the frames (0 on a load failure).
+    pub mean_fps: f64,
+    /// Mean FPS after loading.
+    pub steady_fps: f64,
+    /// When loading finished, seconds.
+    pub loaded_at_s: Option<f64>,
+    /// Mean raster time per frame after loading, ms.
+    #[serde(default)]
+    pub raster_ms: f64,
+    /// Mean MLP shading time per frame after loading, ms.
+    #[serde(default)]
+    pub shade_ms: f64,
+    /// Quads of the loaded scene.
+    #[serde(default)]
+    pub quads: u64,
+}
+
+/// A scene's results.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct SceneReport {
+    /// Scene name.
+    pub scene: String,
+    /// Networks of the segmentation and their objects.
+    pub networks: Vec<(String, Vec<String>)>,
+    /// Stage timings.
+    pub timings: Timings,
+    /// The profiler's sample bakes (object, g, p, sizes, quality).
+    pub samples: Vec<crate::bake::sweep::Sample>,
+    /// Every (device, method).
+    pub rows: Vec<Row>,
+}
+
+/// One FPS curve (the paper's FPS figure).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct FpsCurve {
+    /// Scene.
+    pub scene: String,
+    /// Device.
+    pub device: String,
+    /// Method.
+    pub method: Method,
+    /// Per-frame FPS.
+    pub fps: Vec<f64>,
+    /// Mean.
+    pub mean_fps: f64,
+    /// Whether it failed to load.
+    pub load_failure: Option<String>,
+}
+
+/// Everything the evaluation measured.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct EvalReport {
+    /// Settings, in words.
+    pub settings: Vec<(String, String)>,
+    /// The built-in scenes.
+    pub scenes: Vec<SceneReport>,
+    /// The real lego + chair composite, if evaluated.
+    pub real: Option<SceneReport>,
+    /// FPS curves of the FPS scene.
+    pub fps: Vec<FpsCurve>,
+    /// The device model against the paper's FPS figures.
+    pub calibration: Vec<calibrate::Calibration>,
+    /// Wall-clock seconds of the whole evaluation.
+    pub wall_s: f64,
+}
+
+/// What a scene's evaluation adds to the report besides its rows.
+struct Extras<'a> {
+    /// Keep the FPS curves and check the calibration (the FPS scene).
+    keep_fps: bool,
+    fps: &'a mut Vec<FpsCurve>,
+    calibration: &'a mut Vec<calibrate::Calibration>,
+}
+
+/// A plan measured once: its configurations, its method, the result.
+type Measured = (Vec<(String, u32, u32)>, Method, Realised);
+
+/// A plan (or why there is none) and the devices it is simulated on.
+type DevicePlans<'d> = Vec<(
+    Vec<&'d Device>,
+    anyhow::Result<(crate::baselines::Plan, f64)>,
+)>;
+
+/// Evaluates one prepared scene: every method on every device.
+fn evaluate_scene(
+    prepared: &Prepared,
+    devices: &[Device],
+    opts: &Options,
+    lpips: Option<&Lpips>,
+    progress: &dyn Progress,
+    extras: Extras<'_>,
+) -> anyhow::Result<SceneReport> {
+    let Extras {
+        keep_fps,
+        fps: fps_out,
+        calibration: calib_out,
+    } = extras;
+    let mut rows: Vec<Row> = Vec::new();
+    // Realised plans already measured, by their configurations (a plan the
+    // same on both devices is rendered and measured once).
+    let mut measured: Vec<Measured> = Vec::new();
+    for &method in &METHODS {
+        // Device-independent plans (Single, Block) are simulated on all
+        // devices at once; the planner's are per device.
+        let per_device: DevicePlans<'_> = match method {
+            Method::Single | Method::Block => {
+                let Some(first) = devices.first() else {
+                    continue;
+                };
+                vec![(
+                    devices.iter().collect(),
+                    method_plan(prepared, method, first, opts, lpips, progress),
+                )]
+            }
+            _ => devices
+                .iter()
+                .map(|d| {
+                    (
+                        vec![d],
+                        method_plan(prepared, method, d, opts, lpips, progress),
+                    )
+                })
+                .collect(),
+        };
+        for (devs, planned) in per_device {
+            let (plan, plan_s) = match planned {
+                Ok(p) => p,
+                Err(e) => {
+                    for d in devs {
+                        rows.push(Row {
+                            scene: prepared.label.clone(),
+                            device: d.name.clone(),
+                            method,
+                            error: Some(format!("{e:#}")),
+                            budget_bytes: d.budget().0,
+                            planned_feasible: false,
+                            predicted_bytes: 0,
+                            file_bytes: 0,
+                            plan_s: 0.0,
+                            objects: Vec::new(),
+                            quality: None,
+                            load_failure: None,
+                            over_soft_limit: false,
+                            mean_fps: 0.0,
+                            steady_fps: 0.0,
+                            loaded_at_s: None,
+                            raster_ms: 0.0,
+                            shade_ms: 0.0,
+                            quads: 0,
+                        });
+                    }
+                    continue;
+                }
+            };
+            let key: Vec<(String, u32, u32)> = plan
+                .objects
+                .iter()
+                .map(|o| (o.name.clone(), o.g, o.p))
+                .collect();
+            let idx = match measured.iter().position(|(k, m, _)| {
+                *k == key && (*m == method || !is_baseline(*m) && !is_baseline(method))
+            }) {
+                Some(i) => i,
+                None => {
+                    let r = realise(prepared, &plan, opts, lpips, progress)?;
+                    measured.push((key, method, r));
+                    measured.len() - 1
+                }
+            };
+            let realised = &measured[idx].2;
+            let devices_owned: Vec<Device> = devs.iter().map(|d| (*d).clone()).collect();
+            progress.stage(
+                &format!("simulating {} {method}", prepared.label),
+                devices_owned.len() as u64,
+            );
+            let sims = simulate_devices(realised, &devices_owned, opts)?;
+            for (d, sim) in devices_owned.iter().zip(&sims) {
+                progress.step(&d.name);
+                if keep_fps {
+                    fps_out.push(FpsCurve {
+                        scene: prepared.label.clone(),
+                        device: d.name.clone(),
+                        method,
+                        fps: sim.frames.iter().map(|f| f.fps).collect(),
+                        mean_fps: sim.mean_fps,
+                        load_failure: sim.load_failure.as_ref().map(ToString::to_string),
+                    });
+                    if method == Method::Dp {
+                        if let Some((_, target)) =
+                            CALIBRATION_TARGETS.iter().find(|(n, _)| *n == d.name)
+                        {
+                            progress.stage(&format!("calibration check on {}", d.name), 1);
+                            calib_out.push(calibrate::calibrate(
+                                realised,
+                                d,
+                                opts.turntable,
+                                opts.sim,
+                                *target,
+                                &format!("{} dp", prepared.label),
+                            )?);
+                            progress.step("done");
+                        }
+                    }
+                }
+                rows.push(row(prepared, d, method, &plan, plan_s, realised, sim));
+            }
+        }
+    }
+    Ok(SceneReport {
+        scene: prepared.label.clone(),
+        networks: prepared
+            .networks
+            .iter()
+            .map(|n| (n.name.clone(), n.objects.clone()))
+            .collect(),
+        timings: prepared.timings,
+        samples: prepared.samples.iter().map(|b| b.sample.clone()).collect(),
+        rows,
+    })
+}
+
+fn is_baseline(m: Method) -> bool {
+    matches!(m, Method::Single | Method::Block)
+}
+
+fn row(
+    prepared: &Prepared,
+    d: &Device,
+    method: Method,
+    plan: &crate::baselines::Plan,
+    plan_s: f64,
+    realised: &Realised,
+    sim: &Simulation,
+) -> Row {
+    Row {
+        scene: prepared.label.clone(),
+        device: d.name.clone(),
+        method,
+        error: None,
+        budget_bytes: d.budget().0,
+        planned_feasible: plan.total_size_bytes <= d.budget().0,
+        predicted_bytes: plan.total_size_bytes,
+        file_bytes: realised.file_bytes(),
+        plan_s,
+        objects: realised.objects.clone(),
+        quality: Some(realised.quality),
+        load_failure: sim.load_failure.as_ref().map(ToString::to_string),
+        over_soft_limit: sim.over_soft_limit,
+        mean_fps: sim.mean_fps,
+        steady_fps: sim.steady_fps,
+        loaded_at_s: sim.loaded_at_s,
+        raster_ms: sim.steady_raster_ms,
+        shade_ms: sim.steady_shade_ms,
+        quads: realised.objects.iter().map(|o| o.quads).sum(),
+    }
+}
+
+/// Runs the whole evaluation, writing `eval.json`, `report.md` and the
+/// plots into `out` (scene work folders under `out/scenes/`).
+pub fn run(
+    opts: &EvalOptions,
+    out: &Path,
+    lpips: Option<&Lpips>,
+    progress: &dyn Progress,
+) -> anyhow::Result<EvalReport> {
+    let t0 = std::time::Instant::now();
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
+    let mut fps = Vec::new();
+    let mut calibration = Vec::new();
+    let mut scenes = Vec::new();
+    for &p in &opts.scenes {
+        let dir = out.join("scenes").join(p.name());
+        let prepared = prepare(&Input::Preset(p), &opts.pipeline, &dir, lpips, progress)
+            .with_context(|| format!("preparing {}", p.name()))?;
+        scenes.push(evaluate_scene(
+            &prepared,
+            &opts.devices,
+            &opts.pipeline,
+            lpips,
+            progress,
+            Extras {
+                keep_fps: p == opts.fps_scene,
+                fps: &mut fps,
+                calibration: &mut calibration,
+            },
+        )?);
+    }
+    let real = if opts.real.is_empty() {
+        None
+    } else {
+        let dir = out.join("scenes").join("real");
+        let input = Input::Composite {
+            dirs: opts.real.clone(),
+            size: opts.real_size,
+        };
+        // A side-by-side montage: every object sits at its own capture's
+        // origin; place them 1.5 units apart on the turntable and step the
+        // camera back so both stay in view.
+        let mut popts = opts.pipeline.clone();
+        popts.spread = Some(1.5);
+        popts.turntable.distance *= 1.6;
+        let prepared = prepare(&input, &popts, &dir, lpips, progress)
+            .context("preparing the real composite")?;
+        let mut sink_fps = Vec::new();
+        let mut sink_cal = Vec::new();
+        Some(evaluate_scene(
+            &prepared,
+            &opts.devices,
+            &popts,
+            lpips,
+            progress,
+            Extras {
+                keep_fps: false,
+                fps: &mut sink_fps,
+                calibration: &mut sink_cal,
+            },
+        )?)
+    };
+    let report = EvalReport {
+        settings: settings(opts, lpips.is_some()),
+        scenes,
+        real,
+        fps,
+        calibration,
+        wall_s: t0.elapsed().as_secs_f64(),
+    };
+    write(&report, out)?;
+    Ok(report)
+}
+
+fn settings(opts: &EvalOptions, lpips: bool) -> Vec<(String, String)> {
+    let p = &opts.pipeline;
+    let list = |v: &[u32]| v.iter().map(u32::to_string).collect::<Vec<_>>().join(", ");
+    vec![
+        (
+            "built-in captures".into(),
+            format!(
+                "{}×{} pixels, {} training + {} held-out views",
+                p.size, p.size, p.train_views, p.test_views
+            ),
+        ),
+        (
+            "profiler sample points".into(),
+            format!(
+                "g from {} to {} (×3 steps) × p ∈ {{{}, middle, {}}}",
+                p.sample_grid.0, p.sample_grid.1, p.sample_patch.0, p.sample_patch.1
+            ),
+        ),
+        (
+            "planner's configurations".into(),
+            format!(
+                "g ∈ {{{}}} × p ∈ {{{}}}",
+                list(&p.space_grid),
+                list(&p.space_patch)
+            ),
+        ),
+        (
+            "turntable".into(),
+            format!(
+                "{} frames, {} s per revolution, coverage at {} angles, {} px wide",
+                p.sim.frames, p.sim.period_s, p.turntable.angles, p.turntable.coverage_width
+            ),
+        ),
+        (
+            "real capture".into(),
+            if opts.real.is_empty() {
+                "not evaluated".into()
+            } else {
+                format!(
+                    "{} resized to {}×{} and composed side by side",
+                    opts.real
+                        .iter()
+                        .map(|d| d.display().to_string())
+                        .collect::<Vec<_>>()
+                        .join(" + "),
+                    opts.real_size,
+                    opts.real_size
+                )
+            },
+        ),
+        (
+            "LPIPS".into(),
+            if lpips {
+                "AlexNet v0.1".into()
+            } else {
+                "skipped (no weights)".into()
+            },
+        ),
+    ]
+}
+
+/// Writes `eval.json`, `report.md` and the plots.
+pub fn write(report: &EvalReport, out: &Path) -> anyhow::Result<()> {
+    write_text(
+        &out.join("eval.json"),
+        &serde_json::to_string_pretty(report)?,
+    )?;
+    let pictures = plots::draw(report, out)?;
+    write_text(&out.join("report.md"), &report::markdown(report, &pictures))?;
+    Ok(())
+}

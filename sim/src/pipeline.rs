@@ -1,1 +1,22 @@
-//! (module under construction)
+//! The NeRFlex pipeline end to end, shared by `nerflex run` and
+//! `nerflex eval`: capture → detail-based segmentation → profiler sample
+//! bakes → curve fits → plan → bakes of the chosen configurations →
+//! held-out views rendered and measured → device simulation.
+//!
+//! - [`bakes`]: bakes kept on disk (assets + measured samples), keyed like
+//!   the bake sweep's cache, so a configuration is baked once across
+//!   methods, devices and runs;
+//! - [`stages`]: the stages as functions;
+//! - [`one`]: one method on one device (`nerflex run`) and its report.
+
+pub mod bakes;
+pub mod one;
+pub mod stages;
+
+pub use bakes::{BakeStore, Baked};
+pub use one::{method_plan, run_one, RunResult};
+pub use stages::{
+    baseline_plan, baseline_views, plan_for, prepare, realise, simulate_devices, simulate_on,
+    Input, Network, Options, Prepared, Progress, Quiet, Realised, RealisedObject, SceneQuality,
+    Timings,
+};

@@ -73,7 +73,7 @@ fn simulator_fields_are_read_and_checked() {
 fn frame_cost_has_the_three_terms() {
     let d = Device::from_toml_str(ISSUE2_FORMAT, "t.toml").unwrap();
     let c = d.frame_cost(&FrameWork {
-        quads_drawn: 1e6,
+        quads: 1e6,
         pixels_shaded: 1e5,
     });
     assert!((c.overhead_s - 0.004).abs() < 1e-15);
@@ -82,7 +82,7 @@ fn frame_cost_has_the_three_terms() {
     assert_eq!(MLP_MACS_PER_PIXEL, 480);
     // NaN and negative work count as none.
     let none = d.frame_cost(&FrameWork {
-        quads_drawn: f64::NAN,
+        quads: f64::NAN,
         pixels_shaded: -5.0,
     });
     assert_eq!(none.total_s(), 0.004);
@@ -110,11 +110,11 @@ fn load_check_and_resident_bytes() {
         f.to_string(),
         "240.00 MB of data is over the 240.00 MB that iphone13 can load (the viewer fails to load it)"
     );
-    // The Pixel 4 has no hard limit: anything loads (slowly).
-    assert!(Device::builtin("pixel4")
-        .unwrap()
-        .load_check(Bytes(u64::MAX))
-        .is_ok());
+    // The Pixel 4 loads up to 400 MB (slowly above 150 MB).
+    let p = Device::builtin("pixel4").unwrap();
+    assert!(p.load_check(Bytes(400_000_000)).is_ok());
+    assert!(p.load_check(Bytes(400_000_001)).is_err());
+    assert!(p.over_soft_limit(Bytes(150_000_001)));
     assert_eq!(
         resident_bytes(1000, 10),
         Bytes(1000 + 10 * VERTEX_BYTES_PER_QUAD)

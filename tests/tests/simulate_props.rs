@@ -63,6 +63,7 @@ impl CoverageSource for Table {
         let wobble = 1.0 + 0.5 * (p.x.atan2(-p.y)).sin() as f64;
         let mut c = ViewCoverage::default();
         for &(q, v, px) in self.per_object.iter().take(loaded) {
+            c.quads_in_view += (q as f64 * wobble) as u64;
             c.quads_drawn += (q as f64 * wobble) as u64;
             c.quads_visible += (v as f64 * wobble) as u64;
             c.pixels_covered += (px as f64 * wobble) as u64 * self.pixel_scale;
@@ -197,9 +198,9 @@ proptest! {
         extra_quads in 0.0f64..1e7,
         over_soft in any::<bool>(),
     ) {
-        let a = FrameWork { quads_drawn: quads, pixels_shaded: pixels };
-        let b = FrameWork { quads_drawn: quads, pixels_shaded: pixels + extra_px };
-        let c = FrameWork { quads_drawn: quads + extra_quads, pixels_shaded: pixels };
+        let a = FrameWork { quads, pixels_shaded: pixels };
+        let b = FrameWork { quads, pixels_shaded: pixels + extra_px };
+        let c = FrameWork { quads: quads + extra_quads, pixels_shaded: pixels };
         let (ta, tb, tc) = (
             d.frame_cost(&a).total_s(),
             d.frame_cost(&b).total_s(),

@@ -1,10 +1,176 @@
-//! `nerflex run` (under construction).
+//! `nerflex run`: the whole NeRFlex pipeline on one capture or built-in
+//! scene — segment → profiler sample bakes → fit → plan → bake the chosen
+//! configurations → render the held-out views → SSIM/PSNR/LPIPS →
+//! simulate on the device — with a progress bar and a short report.
+
+use crate::baselines::Method;
+use crate::device::Device;
+use crate::metrics::Lpips;
+use crate::pipeline::{self, Input, Options, Progress};
+use crate::procedural::Preset;
+use crate::simulate::{self, SimOptions};
+use anyhow::{bail, Context as _};
+use nerflex_core::units::Bytes;
+use std::path::PathBuf;
 
 /// Flags of `nerflex run`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+#[command(group(clap::ArgGroup::new("input").required(true).args(["capture", "preset"])))]
+pub struct Args {
+    /// Capture folder (NeRF-synthetic layout with instance masks, or one object).
+    #[arg(long, value_name = "DIR")]
+    pub capture: Option<PathBuf>,
+    /// Or a built-in scene: scene1, scene2, scene3, scene4 (generated into OUT/capture).
+    #[arg(long, value_name = "NAME")]
+    pub preset: Option<Preset>,
+    /// Device: a built-in name (iphone13, pixel4) or a device TOML file.
+    #[arg(long, value_name = "NAME|FILE")]
+    pub device: String,
+    /// Configuration selection method.
+    #[arg(long, value_enum, default_value_t = Method::Dp)]
+    pub method: Method,
+    /// Output folder.
+    #[arg(long, value_name = "DIR", default_value = "results/run")]
+    pub out: PathBuf,
+    /// Image side of a generated scene, pixels.
+    #[arg(long, default_value_t = 160)]
+    pub size: u32,
+    /// Training views of a generated scene.
+    #[arg(long, default_value_t = 16)]
+    pub views: usize,
+    /// Held-out views of a generated scene.
+    #[arg(long, default_value_t = 4)]
+    pub test_views: usize,
+    /// Frames of the turntable simulation.
+    #[arg(long, default_value_t = 2000)]
+    pub frames: usize,
+    /// Folder of kept bakes, shared between runs [default: OUT/bakes].
+    #[arg(long, value_name = "DIR")]
+    pub store: Option<PathBuf>,
+    /// Leave LPIPS out even when its weights are available.
+    #[arg(long)]
+    pub no_lpips: bool,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// A progress bar over the stages.
+pub struct Bar(indicatif::ProgressBar);
+
+impl Bar {
+    /// A bar drawn on stderr (hidden when `quiet`).
+    pub fn new(quiet: bool) -> Bar {
+        let b = if quiet {
+            indicatif::ProgressBar::hidden()
+        } else {
+            indicatif::ProgressBar::new(0)
+        };
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{elapsed_precise} {prefix:.bold} [{bar:28}] {pos}/{len} {wide_msg}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+        );
+        Bar(b)
+    }
+
+    /// Removes the bar.
+    pub fn finish(&self) {
+        self.0.finish_and_clear();
+    }
+}
+
+impl Progress for Bar {
+    fn stage(&self, name: &str, steps: u64) {
+        self.0.set_prefix(name.to_string());
+        self.0.set_length(steps);
+        self.0.set_position(0);
+        self.0.set_message("");
+    }
+    fn step(&self, what: &str) {
+        self.0.set_message(what.to_string());
+        self.0.inc(1);
+    }
+}
+
+/// The LPIPS network if its weights are found (and wanted).
+pub fn lpips(no_lpips: bool) -> anyhow::Result<Option<Lpips>> {
+    if no_lpips {
+        return Ok(None);
+    }
+    match Lpips::default_path() {
+        Some(p) => {
+            Ok(Some(Lpips::load(&p).with_context(|| {
+                format!("loading LPIPS weights {}", p.display())
+            })?))
+        }
+        None => Ok(None),
+    }
+}
 
 /// Runs `nerflex run`.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`nerflex run` is not implemented yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let device = Device::lookup(&args.device)?;
+    if args.frames == 0 {
+        bail!("--frames: must be at least 1");
+    }
+    if !(16..=2048).contains(&args.size) {
+        bail!("--size: must be 16..=2048 pixels, got {}", args.size);
+    }
+    if args.views < 2 || args.test_views == 0 {
+        bail!("--views must be at least 2 and --test-views at least 1");
+    }
+    let input = match (&args.capture, args.preset) {
+        (Some(c), _) => Input::Capture(c.clone()),
+        (None, Some(p)) => Input::Preset(p),
+        (None, None) => bail!("give --capture DIR or --preset NAME"),
+    };
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("{}: cannot create", args.out.display()))?;
+    let mut opts = Options::reduced(args.store.clone().unwrap_or_else(|| args.out.join("bakes")));
+    opts.size = args.size;
+    opts.train_views = args.views;
+    opts.test_views = args.test_views;
+    opts.sim = SimOptions {
+        frames: args.frames,
+        ..SimOptions::default()
+    };
+    opts.renders = Some(args.out.join("renders"));
+    let lpips = lpips(args.no_lpips)?;
+    let bar = Bar::new(args.quiet);
+    let t0 = std::time::Instant::now();
+    let result = pipeline::run_one(
+        &input,
+        &opts,
+        &args.out,
+        args.method,
+        &device,
+        lpips.as_ref(),
+        &bar,
+    );
+    bar.finish();
+    let run = result?;
+    let report = run.report_text(t0.elapsed().as_secs_f64(), lpips.is_some());
+    simulate::write_plot(
+        &run.simulation,
+        &format!("{} {} on {}", run.label, args.method, device.name),
+        &args.out.join("fps.png"),
+    )?;
+    simulate::write_csv(&run.simulation, &args.out.join("fps.csv"))?;
+    run.write(&args.out)?;
+    print!("{report}");
+    println!(
+        "wrote {}/{{report.json, plan.json, scene.json, fps.png, fps.csv, renders/}}",
+        args.out.display()
+    );
+    if let Some(f) = &run.simulation.load_failure {
+        eprintln!(
+            "note: the plan's {:.2} MB did not load on {}: {f}",
+            Bytes(run.simulation.data_bytes).as_mb(),
+            device.name
+        );
+    }
+    Ok(())
 }

@@ -108,8 +108,11 @@ impl BakeStore {
             psnr: q.psnr,
             lpips: q.lpips,
         };
-        std::fs::write(tmp.join("sample.json"), serde_json::to_string_pretty(&sample)?)
-            .with_context(|| format!("{}: cannot write", tmp.display()))?;
+        std::fs::write(
+            tmp.join("sample.json"),
+            serde_json::to_string_pretty(&sample)?,
+        )
+        .with_context(|| format!("{}: cannot write", tmp.display()))?;
         if dir.exists() {
             std::fs::remove_dir_all(&dir)
                 .with_context(|| format!("{}: cannot replace", dir.display()))?;

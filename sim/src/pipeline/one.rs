@@ -1,10 +1,10 @@
 //! One method on one device: what `nerflex run` does and reports.
 
-use super::stages::{
-    self, baseline_plan, baseline_views, plan_for, realise, simulate_on, Input, Options, Prepared,
-    Progress, Realised, RealisedObject, SceneQuality, Timings,
-};
 use super::bakes::BakeStore;
+use super::stages::{
+    self, baseline_plan, plan_for, realise, simulate_on, Input, Options, Prepared, Progress,
+    Realised, RealisedObject, SceneQuality, Timings,
+};
 use crate::baselines::{Method, Plan};
 use crate::device::Device;
 use crate::metrics::Lpips;
@@ -76,7 +76,7 @@ pub fn run_one(
 }
 
 /// The plan of any method: the planner's for the NeRFlex selectors, real
-/// (128, 17) bakes for Single- and Block-NeRF.
+/// bakes at `opts.baseline` ((128, 17)) for Single- and Block-NeRF.
 pub fn method_plan(
     prepared: &Prepared,
     method: Method,
@@ -87,15 +87,28 @@ pub fn method_plan(
 ) -> anyhow::Result<(Plan, f64)> {
     match method {
         Method::Single | Method::Block => {
-            let (single, block) = baseline_views(prepared)?;
             let views: Vec<&crate::bake::sweep::ObjectViews> = if method == Method::Single {
-                vec![&single]
+                vec![prepared.single_views.as_ref().ok_or_else(|| {
+                    anyhow::anyhow!(
+                        "single: {} is a composite of separate captures; there is no whole scene to bake as one",
+                        prepared.label
+                    )
+                })?]
             } else {
-                block.iter().collect()
+                prepared.block_views.iter().collect()
             };
-            progress.stage(&format!("{method} bakes at (128, 17)"), views.len() as u64);
+            let (g, p) = opts.baseline;
+            progress.stage(&format!("{method} bakes at ({g}, {p})"), views.len() as u64);
             let store = BakeStore::new(&opts.store);
-            let (plan, _) = baseline_plan(method, &views, device, &store, lpips, progress)?;
+            let (plan, _) = baseline_plan(
+                method,
+                &views,
+                opts.baseline,
+                device,
+                &store,
+                lpips,
+                progress,
+            )?;
             Ok((plan, 0.0))
         }
         _ => plan_for(prepared, method, device),
@@ -155,7 +168,12 @@ impl RunResult {
             self.timings.sample_bakes_s,
             self.timings.profile_s
         );
-        let predicted: u64 = self.realised.objects.iter().map(|o| o.predicted_bytes).sum();
+        let predicted: u64 = self
+            .realised
+            .objects
+            .iter()
+            .map(|o| o.predicted_bytes)
+            .sum();
         let _ = writeln!(
             s,
             "plan ({}): {:.2} MB predicted, {:.2} MB baked, budget {:.2} MB; planned in {:.2} ms",
@@ -206,8 +224,7 @@ impl RunResult {
                     s,
                     "{}: loaded in {}, mean FPS {:.1} over {} frames (after loading {:.1}){}",
                     self.device,
-                    sim.loaded_at_s
-                        .map_or("—".into(), |t| format!("{t:.2} s")),
+                    sim.loaded_at_s.map_or("—".into(), |t| format!("{t:.2} s")),
                     sim.mean_fps,
                     sim.frames.len(),
                     sim.steady_fps,
@@ -226,7 +243,12 @@ impl RunResult {
     /// (`assets/<object>/g<g>_p<p>` → the store) into `out`, so
     /// `nerflex simulate --scene OUT/scene.json --plan OUT/plan.json` works.
     pub fn write(&self, out: &Path) -> anyhow::Result<()> {
-        let predicted = self.realised.objects.iter().map(|o| o.predicted_bytes).sum();
+        let predicted = self
+            .realised
+            .objects
+            .iter()
+            .map(|o| o.predicted_bytes)
+            .sum();
         let report = ReportJson {
             scene: &self.label,
             device: &self.device,
@@ -234,7 +256,10 @@ impl RunResult {
             networks: self
                 .networks
                 .iter()
-                .map(|(n, o)| NetworkJson { name: n, objects: o })
+                .map(|(n, o)| NetworkJson {
+                    name: n,
+                    objects: o,
+                })
                 .collect(),
             timings: self.timings,
             plan_s: self.plan_s,
@@ -250,8 +275,14 @@ impl RunResult {
             steady_fps: self.simulation.steady_fps,
             loaded_at_s: self.simulation.loaded_at_s,
         };
-        write_text(&out.join("report.json"), &serde_json::to_string_pretty(&report)?)?;
-        write_text(&out.join("plan.json"), &serde_json::to_string_pretty(&self.plan)?)?;
+        write_text(
+            &out.join("report.json"),
+            &serde_json::to_string_pretty(&report)?,
+        )?;
+        write_text(
+            &out.join("plan.json"),
+            &serde_json::to_string_pretty(&self.plan)?,
+        )?;
         write_text(
             &out.join("scene.json"),
             &serde_json::to_string_pretty(&self.scene_json)?,

@@ -14,11 +14,11 @@
 //! Single-NeRF and Block-NeRF do not go through the profiler: Single-NeRF is
 //! one bake of the whole scene (every object's pixels as one silhouette) at
 //! (128, 17), Block-NeRF one bake per object at (128, 17) from the original
-//! (not enlarged) views ([`baseline_bakes`]).
+//! (not enlarged) views ([`baseline_views`], [`baseline_plan`]).
 
 use super::bakes::{BakeStore, Baked};
-use crate::baselines::{self, Budget, Method, Plan, PlannedObject, DEFAULT_G, DEFAULT_P};
 use crate::bake::sweep::{Fnv64, ObjectViews};
+use crate::baselines::{self, Budget, Method, Plan, PlannedObject, DEFAULT_G, DEFAULT_P};
 use crate::camera::Camera;
 use crate::capture::Capture;
 use crate::device::Device;
@@ -43,10 +43,20 @@ pub enum Input {
     Capture(PathBuf),
     /// A built-in scene, generated into `<out>/capture`.
     Preset(Preset),
+    /// Single-object captures (e.g. the real lego and chair) resized to
+    /// `size × size` and composed side by side by the segmentation module
+    /// (a 2-D montage: each object keeps its own cameras, so there is no
+    /// whole-scene view to render, and no Single-NeRF).
+    Composite {
+        /// The captures.
+        dirs: Vec<PathBuf>,
+        /// Image side after resizing, pixels.
+        size: u32,
+    },
 }
 
 /// Settings of the pipeline (the reduced defaults of `nerflex run` are in
-/// [`Options::default`]).
+/// [`Options::reduced`]).
 #[derive(Clone, Debug)]
 pub struct Options {
     /// Image side of a generated capture, pixels.
@@ -71,6 +81,13 @@ pub struct Options {
     pub store: PathBuf,
     /// Write the rendered held-out views here (`None`: not kept).
     pub renders: Option<PathBuf>,
+    /// The (g, p) of Single-NeRF and Block-NeRF (the paper: MobileNeRF's
+    /// (128, 17)).
+    pub baseline: (u32, u32),
+    /// For the simulation only: place object k at x = (k − (n−1)/2)·spread
+    /// (world units). Objects of a composite of separate captures all sit
+    /// at their own origin; spreading them makes a plausible turntable.
+    pub spread: Option<f32>,
 }
 
 impl Options {
@@ -91,6 +108,8 @@ impl Options {
             sim: SimOptions::default(),
             store,
             renders: None,
+            baseline: (DEFAULT_G, DEFAULT_P),
+            spread: None,
         }
     }
 }
@@ -139,8 +158,13 @@ pub struct Timings {
 pub struct Prepared {
     /// A short name for reports (preset name or capture folder name).
     pub label: String,
-    /// The original capture (held-out views of the whole scene).
-    pub capture: Capture,
+    /// The original capture (held-out views of the whole scene); `None`
+    /// for a composite.
+    pub capture: Option<Capture>,
+    /// Single-NeRF's views (the whole capture as one object); `None` for a composite.
+    pub single_views: Option<ObjectViews>,
+    /// Block-NeRF's views: each object from the original (not enlarged) views.
+    pub block_views: Vec<ObjectViews>,
     /// The segmentation result.
     pub segmentation: Segmentation,
     /// One entry per network, in segmentation order.
@@ -186,7 +210,11 @@ fn input_capture(
             }
             let t0 = Instant::now();
             progress.stage(
-                &format!("rendering {} ({} views)", p.name(), opts.train_views + opts.test_views),
+                &format!(
+                    "rendering {} ({} views)",
+                    p.name(),
+                    opts.train_views + opts.test_views
+                ),
                 (opts.train_views + opts.test_views) as u64,
             );
             if dir.exists() {
@@ -209,6 +237,7 @@ fn input_capture(
                 .with_context(|| format!("{}: cannot write", stamp.display()))?;
             Ok((dir, p.name().to_string(), t0.elapsed().as_secs_f64()))
         }
+        Input::Composite { .. } => bail!("a composite has no capture folder"),
     }
 }
 
@@ -230,7 +259,11 @@ pub fn whole_capture_views(cap: &Capture, name: &str) -> ObjectViews {
             .iter()
             .map(|f| (f.camera, f.image.clone(), None))
             .collect(),
-        test: cap.test.iter().map(|f| (f.camera, f.image.clone())).collect(),
+        test: cap
+            .test
+            .iter()
+            .map(|f| (f.camera, f.image.clone()))
+            .collect(),
         search_box: None,
     }
 }
@@ -259,24 +292,45 @@ pub fn prepare(
     progress: &dyn Progress,
 ) -> anyhow::Result<Prepared> {
     let mut timings = Timings::default();
-    let (capture_dir, label, capture_s) = input_capture(input, opts, out, progress)?;
-    timings.capture_s = capture_s;
-    let capture = Capture::load(&capture_dir)
-        .with_context(|| format!("loading {}", capture_dir.display()))?;
-    if capture.test.is_empty() {
-        bail!(
-            "{}: the capture has no held-out views (transforms_test.json) to measure quality on",
-            capture_dir.display()
-        );
-    }
+    let (seg_cap, capture, label) = match input {
+        Input::Composite { dirs, size } => {
+            let refs: Vec<&Path> = dirs.iter().map(PathBuf::as_path).collect();
+            let seg_cap = segment::compose::compose_dirs(&refs, Some(*size))
+                .context("composing the captures")?;
+            let label = dirs
+                .iter()
+                .map(|d| {
+                    d.file_name()
+                        .and_then(|n| n.to_str())
+                        .unwrap_or("capture")
+                        .to_string()
+                })
+                .collect::<Vec<_>>()
+                .join("+");
+            (seg_cap, None, label)
+        }
+        _ => {
+            let (dir, label, capture_s) = input_capture(input, opts, out, progress)?;
+            timings.capture_s = capture_s;
+            let capture =
+                Capture::load(&dir).with_context(|| format!("loading {}", dir.display()))?;
+            if capture.test.is_empty() {
+                bail!(
+                    "{}: the capture has no held-out views (transforms_test.json) to measure quality on",
+                    dir.display()
+                );
+            }
+            let seg_cap = SegCapture::load(&dir)
+                .with_context(|| format!("segmentation input {}", dir.display()))?;
+            (seg_cap, Some(capture), label)
+        }
+    };
 
     progress.stage("segmenting", 1);
     let t0 = Instant::now();
-    let seg_cap = SegCapture::load(&capture_dir)
-        .with_context(|| format!("segmentation input {}", capture_dir.display()))?;
     let seg_dir = out.join("segment");
     let segmentation = segment::segment(&seg_cap, &SegmentOptions::default(), &seg_dir)
-        .with_context(|| format!("segmenting {}", capture_dir.display()))?;
+        .with_context(|| format!("segmenting {}", seg_cap.source))?;
     timings.segment_s = t0.elapsed().as_secs_f64();
     progress.step("segmented");
     let networks = segmentation
@@ -290,6 +344,11 @@ pub fn prepare(
             })
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
+    let (single_views, block_views) = match (&capture, input) {
+        (Some(cap), _) => baseline_views(cap)?,
+        (None, Input::Composite { dirs, size }) => (None, composite_block_views(dirs, *size)?),
+        (None, _) => (None, Vec::new()),
+    };
 
     // The profiler's sample points (timed with the fit below).
     let t_points = Instant::now();
@@ -336,6 +395,8 @@ pub fn prepare(
     Ok(Prepared {
         label,
         capture,
+        single_views,
+        block_views,
         segmentation,
         networks,
         samples,
@@ -383,7 +444,8 @@ pub struct SceneQuality {
     pub psnr: f64,
     /// Mean LPIPS, if the weights were available.
     pub lpips: Option<f64>,
-    /// Views measured.
+    /// Whole-scene views measured; 0 when there is no whole-scene view (a
+    /// composite): then the values are the networks' own means.
     pub views: usize,
 }
 
@@ -436,17 +498,18 @@ impl Realised {
 /// The views a planned object is baked from.
 fn views_of<'a>(
     prepared: &'a Prepared,
-    single: &'a ObjectViews,
-    block: &'a [ObjectViews],
     method: Method,
     o: &PlannedObject,
 ) -> anyhow::Result<&'a ObjectViews> {
     match method {
-        Method::Single => Ok(single),
-        Method::Block => block
+        Method::Single => prepared
+            .single_views
+            .as_ref()
+            .context("single: a composite of separate captures has no whole-scene views"),
+        Method::Block => prepared
+            .block_views
             .iter()
             .find(|v| v.name == o.name)
-            .or_else(|| prepared.networks.iter().map(|n| &n.views).find(|v| v.name == o.name))
             .with_context(|| format!("block: no views for `{}`", o.name)),
         _ => prepared
             .networks
@@ -457,27 +520,62 @@ fn views_of<'a>(
     }
 }
 
-/// Single-NeRF's and Block-NeRF's views: the whole capture, and each scene
-/// object from the original views with its instance mask.
-pub fn baseline_views(prepared: &Prepared) -> anyhow::Result<(ObjectViews, Vec<ObjectViews>)> {
-    let single = whole_capture_views(&prepared.capture, "single");
-    let block = match &prepared.capture.scene {
+/// Single-NeRF's and Block-NeRF's views of a capture: the whole capture,
+/// and each scene object from the original views with its instance mask.
+pub fn baseline_views(cap: &Capture) -> anyhow::Result<(Option<ObjectViews>, Vec<ObjectViews>)> {
+    let single = whole_capture_views(cap, "single");
+    let block = match &cap.scene {
         Some(s) if s.objects.len() > 1 => s
             .objects
             .iter()
-            .map(|o| ObjectViews::from_capture(&prepared.capture, Some(&o.name)))
+            .map(|o| ObjectViews::from_capture(cap, Some(&o.name)))
             .collect::<anyhow::Result<Vec<_>>>()?,
-        _ => vec![whole_capture_views(&prepared.capture, "block")],
+        _ => vec![whole_capture_views(cap, "block")],
     };
-    Ok((single, block))
+    Ok((Some(single), block))
 }
 
-/// The plans of Single-NeRF and Block-NeRF: real bakes at (128, 17), not
-/// the planner's derived tables. Their sizes are the baked file bytes;
-/// `feasible` compares them with the device's budget.
+/// Block-NeRF's views of a composite: each source capture, resized like the
+/// composite, as one object named after its folder.
+fn composite_block_views(dirs: &[PathBuf], size: u32) -> anyhow::Result<Vec<ObjectViews>> {
+    dirs.iter()
+        .map(|d| {
+            let c = SegCapture::load(d).with_context(|| format!("loading {}", d.display()))?;
+            let c = segment::compose::resize_capture(&c, size, size)?;
+            let name = d
+                .file_name()
+                .and_then(|n| n.to_str())
+                .unwrap_or("object")
+                .to_string();
+            let mut h = Fnv64::default();
+            h.write(name.as_bytes());
+            h.write(format!("block-composite {size}").as_bytes());
+            for f in c.train.iter().chain(&c.test) {
+                h.write(format!("{:?}", f.camera).as_bytes());
+                h.write(f.image.as_raw());
+            }
+            Ok(ObjectViews {
+                name,
+                content_hash: h.finish(),
+                train: c
+                    .train
+                    .iter()
+                    .map(|f| (f.camera, f.image.clone(), None))
+                    .collect(),
+                test: c.test.iter().map(|f| (f.camera, f.image.clone())).collect(),
+                search_box: None,
+            })
+        })
+        .collect()
+}
+
+/// The plans of Single-NeRF and Block-NeRF: real bakes at `(g, p)` (the
+/// paper: (128, 17)), not the planner's derived tables. Their sizes are the
+/// baked file bytes; `feasible` compares them with the device's budget.
 pub fn baseline_plan(
     method: Method,
     views: &[&ObjectViews],
+    (g, p): (u32, u32),
     device: &Device,
     store: &BakeStore,
     lpips: Option<&Lpips>,
@@ -486,12 +584,12 @@ pub fn baseline_plan(
     let mut objects = Vec::new();
     let mut bakes = Vec::new();
     for v in views {
-        let b = store.get_or_bake(v, DEFAULT_G, DEFAULT_P, lpips)?;
-        progress.step(&format!("{} {} g={DEFAULT_G} p={DEFAULT_P}", method, v.name));
+        let b = store.get_or_bake(v, g, p, lpips)?;
+        progress.step(&format!("{} {} g={g} p={p}", method, v.name));
         objects.push(PlannedObject {
             name: v.name.clone(),
-            g: DEFAULT_G,
-            p: DEFAULT_P,
+            g,
+            p,
             size_bytes: b.sample.size_bytes,
             quality: b.sample.ssim,
             config_index: None,
@@ -529,7 +627,6 @@ pub fn realise(
     progress: &dyn Progress,
 ) -> anyhow::Result<Realised> {
     let store = BakeStore::new(&opts.store);
-    let (single, block) = baseline_views(prepared)?;
     progress.stage(
         &format!("baking the {} plan", plan.method),
         plan.objects.len() as u64,
@@ -537,7 +634,7 @@ pub fn realise(
     let mut objects = Vec::new();
     let mut bake_s = 0.0;
     for o in &plan.objects {
-        let v = views_of(prepared, &single, &block, plan.method, o)?;
+        let v = views_of(prepared, plan.method, o)?;
         let b = store.get_or_bake(v, o.g, o.p, lpips)?;
         bake_s += b.seconds;
         progress.step(&format!("{} g={} p={}", o.name, o.g, o.p));
@@ -573,6 +670,15 @@ fn scene_quality(
     lpips: Option<&Lpips>,
     progress: &dyn Progress,
 ) -> anyhow::Result<SceneQuality> {
+    let Some(capture) = &prepared.capture else {
+        let n = objects.len().max(1) as f64;
+        return Ok(SceneQuality {
+            ssim: objects.iter().map(|o| o.ssim).sum::<f64>() / n,
+            psnr: objects.iter().map(|o| o.psnr).sum::<f64>() / n,
+            lpips: lpips.map(|_| objects.iter().filter_map(|o| o.lpips).sum::<f64>() / n),
+            views: 0,
+        });
+    };
     let assets = objects
         .iter()
         .map(|o| {
@@ -581,7 +687,7 @@ fn scene_quality(
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
     let refs: Vec<&crate::asset::Asset> = assets.iter().collect();
-    let test = &prepared.capture.test;
+    let test = &capture.test;
     progress.stage("rendering the held-out views", test.len() as u64);
     let mut sum = SceneQuality::default();
     let mut lp = 0.0;
@@ -622,15 +728,24 @@ pub fn simulate_on(
     device: &Device,
     opts: &Options,
 ) -> anyhow::Result<Simulation> {
-    // A scene over the hard limit is never drawn: skip loading its assets.
+    let mut v = simulate_devices(realised, std::slice::from_ref(device), opts)?;
+    v.pop().context("no simulation")
+}
+
+/// Loads a realised scene's assets once (unless no device can load it) and
+/// simulates it on every device; devices with the same viewer size share
+/// the measured coverage. `turntable` overrides `opts.turntable`.
+pub fn simulate_devices(
+    realised: &Realised,
+    devices: &[Device],
+    opts: &Options,
+) -> anyhow::Result<Vec<Simulation>> {
     let names: Vec<String> = realised.objects.iter().map(|o| o.name.clone()).collect();
     let bytes: Vec<u64> = realised.objects.iter().map(|o| o.file_bytes).collect();
-    let over = device
-        .load_check(nerflex_core::units::Bytes(bytes.iter().sum()))
-        .is_err();
-    let assets = if over {
-        Vec::new()
-    } else {
+    let data = nerflex_core::units::Bytes(bytes.iter().sum());
+    let any_loads = devices.iter().any(|d| d.load_check(data).is_ok());
+    // A scene no device can load is never drawn: its assets stay on disk.
+    let mut assets = if any_loads {
         realised
             .objects
             .iter()
@@ -639,9 +754,24 @@ pub fn simulate_on(
                     .with_context(|| format!("loading {}", o.asset.display()))
             })
             .collect::<anyhow::Result<Vec<_>>>()?
+    } else {
+        Vec::new()
     };
+    if let Some(spread) = opts.spread {
+        let n = assets.len() as f32;
+        for (k, a) in assets.iter_mut().enumerate() {
+            let dx = (k as f32 - (n - 1.0) / 2.0) * spread;
+            for q in a.shapes.iter_mut().flat_map(|s| s.quads.iter_mut()) {
+                for c in &mut q.corners {
+                    c.pos[0] += dx;
+                }
+            }
+        }
+    }
     let scene = AssetScene::new(names.clone(), assets, bytes.clone());
-    let items = if over {
+    let items = if any_loads {
+        scene.load_items()
+    } else {
         names
             .iter()
             .zip(&bytes)
@@ -651,12 +781,23 @@ pub fn simulate_on(
                 resident_bytes: 0,
             })
             .collect()
-    } else {
-        scene.load_items()
     };
-    let source: &dyn simulate::CoverageSource = if over { &NoCoverage(names.len()) } else { &scene };
-    let tt = Turntable::new(opts.turntable, device.viewer(), source);
-    simulate::simulate(device, &items, &tt, opts.sim)
+    let empty = NoCoverage(names.len());
+    let source: &dyn simulate::CoverageSource = if any_loads { &scene } else { &empty };
+    let mut turntables: Vec<(crate::device::Viewer, Turntable<'_>)> = Vec::new();
+    let mut out = Vec::new();
+    for d in devices {
+        let viewer = d.viewer();
+        let k = match turntables.iter().position(|(v, _)| *v == viewer) {
+            Some(k) => k,
+            None => {
+                turntables.push((viewer, Turntable::new(opts.turntable, viewer, source)));
+                turntables.len() - 1
+            }
+        };
+        out.push(simulate::simulate(d, &items, &turntables[k].1, opts.sim)?);
+    }
+    Ok(out)
 }
 
 /// The coverage of a scene that never loads (never asked for).
@@ -666,11 +807,7 @@ impl simulate::CoverageSource for NoCoverage {
     fn objects(&self) -> usize {
         self.0
     }
-    fn coverage(
-        &self,
-        _: usize,
-        _: &Camera,
-    ) -> anyhow::Result<simulate::ViewCoverage> {
+    fn coverage(&self, _: usize, _: &Camera) -> anyhow::Result<simulate::ViewCoverage> {
         bail!("coverage of a scene that failed to load")
     }
 }

@@ -108,9 +108,42 @@ impl CoverageSource for AssetScene {
         let c = crate::render::coverage_scene(&refs, camera)
             .map_err(|e| anyhow::anyhow!("coverage pass: {e}"))?;
         Ok(ViewCoverage {
+            quads_in_view: quads_in_view(&refs, camera),
             quads_drawn: u64::from(c.quads_drawn),
             quads_visible: u64::from(c.quads_visible),
             pixels_covered: c.pixels_covered,
         })
     }
+}
+
+/// Quads with at least one corner in front of the camera and inside its
+/// image: the quads a GPU sets up for this view, whatever their size in
+/// pixels (so the count does not depend on the coverage resolution).
+pub fn quads_in_view(assets: &[&Asset], camera: &Camera) -> u64 {
+    use rayon::prelude::*;
+    let k = camera.intrinsics;
+    let (w, h) = (k.width as f32, k.height as f32);
+    let w2c = camera.w2c();
+    let inside = |p: [f32; 3]| {
+        let c = w2c.transform_point3(glam::Vec3::from(p));
+        let depth = -c.z;
+        if depth <= 1e-6 {
+            return false;
+        }
+        let (x, y) = (k.cx + k.fx * c.x / depth, k.cy - k.fy * c.y / depth);
+        (0.0..=w).contains(&x) && (0.0..=h).contains(&y)
+    };
+    assets
+        .iter()
+        .flat_map(|a| &a.shapes)
+        .map(|s| {
+            s.quads
+                .par_iter()
+                .filter(|q| {
+                    let n = if q.single_triangle { 3 } else { 4 };
+                    q.corners.iter().take(n).any(|c| inside(c.pos))
+                })
+                .count() as u64
+        })
+        .sum()
 }

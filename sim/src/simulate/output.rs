@@ -8,7 +8,7 @@ use std::path::Path;
 
 /// The header of the per-frame CSV.
 pub const CSV_HEADER: &str =
-    "frame,t_s,frame_ms,fps,objects_loaded,quads_drawn,quads_visible,pixels_shaded,stall_ms";
+    "frame,t_s,frame_ms,fps,objects_loaded,quads,quads_visible,pixels_shaded,stall_ms";
 
 /// The per-frame CSV text.
 pub fn csv_text(sim: &Simulation) -> String {
@@ -22,7 +22,7 @@ pub fn csv_text(sim: &Simulation) -> String {
             f.frame_s * 1e3,
             f.fps,
             f.objects_loaded,
-            f.quads_drawn,
+            f.quads,
             f.quads_visible,
             f.pixels_shaded,
             f.stall_s * 1e3

@@ -69,8 +69,8 @@ pub struct FrameRecord {
     pub fps: f64,
     /// Objects drawn.
     pub objects_loaded: usize,
-    /// Quads drawn.
-    pub quads_drawn: f64,
+    /// Quads set up and rasterised (in view).
+    pub quads: f64,
     /// Quads owning a final pixel.
     pub quads_visible: f64,
     /// Pixels shaded at the viewer's resolution.
@@ -102,6 +102,10 @@ pub struct Simulation {
     pub steady_fps: f64,
     /// Lowest per-frame FPS.
     pub min_fps: f64,
+    /// Mean raster time of the frames after loading, milliseconds.
+    pub steady_raster_ms: f64,
+    /// Mean shading (MLP) time of the frames after loading, milliseconds.
+    pub steady_shade_ms: f64,
     /// Coverage passes run.
     pub coverage_passes: usize,
     /// Every frame.
@@ -147,6 +151,8 @@ pub fn simulate(
         mean_fps: 0.0,
         steady_fps: 0.0,
         min_fps: 0.0,
+        steady_raster_ms: 0.0,
+        steady_shade_ms: 0.0,
         coverage_passes: 0,
         frames: Vec::with_capacity(options.frames),
     };
@@ -158,7 +164,7 @@ pub fn simulate(
                 frame_s: refresh_s,
                 fps: 0.0,
                 objects_loaded: 0,
-                quads_drawn: 0.0,
+                quads: 0.0,
                 quads_visible: 0.0,
                 pixels_shaded: 0.0,
                 stall_s: 0.0,
@@ -199,7 +205,7 @@ pub fn simulate(
             frame_s,
             fps,
             objects_loaded: loaded,
-            quads_drawn: work.quads_drawn,
+            quads: work.quads,
             quads_visible: visible,
             pixels_shaded: work.pixels_shaded,
             stall_s: stall,
@@ -237,6 +243,24 @@ pub fn simulate(
     } else {
         steady.iter().sum::<f64>() / steady.len() as f64
     };
+    let (mut raster, mut shade, mut n_steady) = (0.0, 0.0, 0usize);
+    for f in sim
+        .frames
+        .iter()
+        .filter(|f| f.objects_loaded == items.len())
+    {
+        let c = device.frame_cost(&crate::device::FrameWork {
+            quads: f.quads,
+            pixels_shaded: f.pixels_shaded,
+        });
+        raster += c.raster_s;
+        shade += c.shade_s;
+        n_steady += 1;
+    }
+    if n_steady > 0 {
+        sim.steady_raster_ms = 1e3 * raster / n_steady as f64;
+        sim.steady_shade_ms = 1e3 * shade / n_steady as f64;
+    }
     sim.coverage_passes = turntable.passes();
     Ok(sim)
 }
@@ -258,6 +282,7 @@ mod tests {
         fn coverage(&self, loaded: usize, _: &Camera) -> anyhow::Result<ViewCoverage> {
             let k = loaded as u64;
             Ok(ViewCoverage {
+                quads_in_view: self.per_object.quads_in_view * k,
                 quads_drawn: self.per_object.quads_drawn * k,
                 quads_visible: self.per_object.quads_visible * k,
                 pixels_covered: self.per_object.pixels_covered * k,
@@ -281,7 +306,8 @@ mod tests {
         let src = Flat {
             objects: 5,
             per_object: ViewCoverage {
-                quads_drawn: 100_000,
+                quads_in_view: 100_000,
+                quads_drawn: 90_000,
                 quads_visible: 30_000,
                 pixels_covered: 2_000,
             },

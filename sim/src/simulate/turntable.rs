@@ -78,7 +78,11 @@ impl Default for TurntableSpec {
 /// What one view of the loaded objects costs, at the coverage resolution.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct ViewCoverage {
-    /// Quads with at least one triangle projected onto the image.
+    /// Quads with a corner in front of the camera and inside the image: what
+    /// the GPU sets up and rasterises (independent of the resolution).
+    pub quads_in_view: u64,
+    /// Quads whose triangles cover at least one pixel centre at the
+    /// coverage resolution (resolution-dependent; reported, not costed).
     pub quads_drawn: u64,
     /// Distinct quads owning at least one final pixel.
     pub quads_visible: u64,
@@ -173,7 +177,7 @@ impl<'a> Turntable<'a> {
         let scale = self.viewer.pixels() as f64 / (f64::from(w) * f64::from(h));
         Ok((
             FrameWork {
-                quads_drawn: lerp(a.quads_drawn, b.quads_drawn),
+                quads: lerp(a.quads_in_view, b.quads_in_view),
                 pixels_shaded: lerp(a.pixels_covered, b.pixels_covered) * scale,
             },
             lerp(a.quads_visible, b.quads_visible),
@@ -196,7 +200,8 @@ mod tests {
             // Encode the azimuth in the pixel count: 0° → 0, 90° → 100, …
             let az = p.x.atan2(-p.y).to_degrees().rem_euclid(360.0);
             Ok(ViewCoverage {
-                quads_drawn: 10 * loaded as u64,
+                quads_in_view: 10 * loaded as u64,
+                quads_drawn: 8 * loaded as u64,
                 quads_visible: 5 * loaded as u64,
                 pixels_covered: (az / 90.0 * 100.0).round() as u64,
             })
@@ -218,7 +223,7 @@ mod tests {
         let (w, _) = t.work(2, 0.125).unwrap();
         // Halfway between 0° (0 px) and 90° (100 px), × 4 for the viewer.
         assert!((w.pixels_shaded - 200.0).abs() < 1e-9, "{w:?}");
-        assert_eq!(w.quads_drawn, 20.0);
+        assert_eq!(w.quads, 20.0);
         let (w0, _) = t.work(0, 0.3).unwrap();
         assert_eq!(w0, FrameWork::default());
         // Angles wrap: 1.125 revolutions is 0.125.
