@@ -62,17 +62,15 @@ fn one_angle(c: &mut Criterion) {
         return;
     };
     let asset = nerflex_sim::asset::Asset::load(&data.join("mobilenerf/drums")).expect("drums");
-    let scene = nerflex_sim::simulate::assets::AssetScene::new(
-        vec!["drums".into()],
-        vec![asset],
-        vec![0],
-    );
+    let scene =
+        nerflex_sim::simulate::assets::AssetScene::new(vec!["drums".into()], vec![asset], vec![0]);
     let spec = TurntableSpec::DEFAULT;
     let viewer = nerflex_sim::device::Viewer::DEFAULT;
     let cam = spec.camera(5, viewer);
-    c.bench_function("simulate/one angle of drums (160 px coverage + quads in view)", |b| {
-        b.iter(|| black_box(scene.coverage(1, &cam).expect("coverage")))
-    });
+    c.bench_function(
+        "simulate/one angle of drums (160 px coverage + quads in view)",
+        |b| b.iter(|| black_box(scene.coverage(1, &cam).expect("coverage"))),
+    );
 }
 
 criterion_group!(benches, frame_loop, one_angle);
