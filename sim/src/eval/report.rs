@@ -256,7 +256,7 @@ pub fn markdown(r: &EvalReport, pictures: &[(String, String)]) -> String {
     let _ = writeln!(
         s,
         "\nSample bakes (the profiler's measurements, standing for training, which the \
-         paper leaves out): {}.\n",
+         paper leaves out; 0 s when every bake was already in the store): {}.\n",
         r.scenes
             .iter()
             .map(|x| format!("{} {:.0} s", x.scene, x.timings.sample_bakes_s))
@@ -267,8 +267,10 @@ pub fn markdown(r: &EvalReport, pictures: &[(String, String)]) -> String {
         let _ = writeln!(s, "## Real capture: {}\n", real.scene);
         let _ = writeln!(
             s,
-            "A side-by-side composite of two real captures has no whole-scene view: quality \
-             is the mean of the networks' own held-out views; there is no Single-NeRF.\n"
+            "A side-by-side composite of separate real captures has no whole-scene view: \
+             each object's asset is rendered from its own capture's held-out cameras (the same \
+             views for every method) and the means are over every (object, view); there is no \
+             Single-NeRF.\n"
         );
         scene_table(real, &mut s);
         let _ = writeln!(s);

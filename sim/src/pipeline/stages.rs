@@ -444,8 +444,8 @@ pub struct SceneQuality {
     pub psnr: f64,
     /// Mean LPIPS, if the weights were available.
     pub lpips: Option<f64>,
-    /// Whole-scene views measured; 0 when there is no whole-scene view (a
-    /// composite): then the values are the networks' own means.
+    /// Views measured: the capture's held-out views, or for a composite
+    /// (no whole-scene view) every object's source held-out views.
     pub views: usize,
 }
 
@@ -671,13 +671,7 @@ fn scene_quality(
     progress: &dyn Progress,
 ) -> anyhow::Result<SceneQuality> {
     let Some(capture) = &prepared.capture else {
-        let n = objects.len().max(1) as f64;
-        return Ok(SceneQuality {
-            ssim: objects.iter().map(|o| o.ssim).sum::<f64>() / n,
-            psnr: objects.iter().map(|o| o.psnr).sum::<f64>() / n,
-            lpips: lpips.map(|_| objects.iter().filter_map(|o| o.lpips).sum::<f64>() / n),
-            views: 0,
-        });
+        return composite_quality(prepared, objects, lpips, progress);
     };
     let assets = objects
         .iter()
@@ -713,6 +707,57 @@ fn scene_quality(
         psnr: sum.psnr / n,
         lpips: lpips.map(|_| lp / n),
         views: test.len(),
+    })
+}
+
+/// A composite has no whole-scene view: each object's asset is rendered from
+/// its own source capture's held-out cameras (the same views for every
+/// method, enlarged or not) and compared with those images; the means are
+/// over every (object, view).
+fn composite_quality(
+    prepared: &Prepared,
+    objects: &[RealisedObject],
+    lpips: Option<&Lpips>,
+    progress: &dyn Progress,
+) -> anyhow::Result<SceneQuality> {
+    let source_of = |name: &str| -> Option<&ObjectViews> {
+        let object = prepared
+            .networks
+            .iter()
+            .find(|n| n.name == name)
+            .and_then(|n| n.objects.first().map(String::as_str))
+            .unwrap_or(name);
+        prepared.block_views.iter().find(|v| v.name == object)
+    };
+    let views: usize = objects
+        .iter()
+        .filter_map(|o| source_of(&o.name))
+        .map(|v| v.test.len())
+        .sum();
+    progress.stage("rendering the held-out views", views as u64);
+    let (mut ssim, mut psnr, mut lp, mut n) = (0.0, 0.0, 0.0, 0usize);
+    for o in objects {
+        let src =
+            source_of(&o.name).with_context(|| format!("no source capture for `{}`", o.name))?;
+        let asset = crate::asset::Asset::load(&o.asset)
+            .with_context(|| format!("loading {}", o.asset.display()))?;
+        for (i, (cam, gt)) in src.test.iter().enumerate() {
+            let img = render(&[&asset], cam)?;
+            let s = Metrics::compare(&img, gt, lpips)
+                .with_context(|| format!("measuring {} held-out view {i}", o.name))?;
+            ssim += s.ssim;
+            psnr += s.psnr.min(100.0);
+            lp += s.lpips.unwrap_or(0.0);
+            n += 1;
+            progress.step(&format!("{} view {i}", o.name));
+        }
+    }
+    let d = n.max(1) as f64;
+    Ok(SceneQuality {
+        ssim: ssim / d,
+        psnr: psnr / d,
+        lpips: lpips.map(|_| lp / d),
+        views: n,
     })
 }
 
