@@ -3,10 +3,9 @@
 
 use super::axis::{Axis, Scale};
 use super::canvas::{text_height, text_width, Canvas, Fonts, HAlign, VAlign};
-use super::frame::{self, Area, MARGIN};
-use super::legend::{self, Entry, LegendPosition};
-use super::{check_size, save_png, PlotError, Rgb, DEFAULT_SIZE, PALETTE};
-use std::path::Path;
+use super::frame::{self, decor_methods, Area, Decor, MARGIN};
+use super::legend::{self, Entry};
+use super::{check_size, PlotError, Rgb, PALETTE};
 use tiny_skia::Pixmap;
 
 /// Fraction of a group's width taken by its bars (the rest separates groups).
@@ -23,15 +22,11 @@ struct BarSeries {
 /// marked "n/a" when value labels are on.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BarChart {
-    title: String,
-    x_label: String,
-    y_label: String,
+    decor: Decor,
     categories: Vec<String>,
     series: Vec<BarSeries>,
     y_range: Option<(f64, f64)>,
-    legend: LegendPosition,
     value_labels: bool,
-    size: (u32, u32),
 }
 
 /// Where a [`BarChart`] puts things for a given picture size.
@@ -87,17 +82,15 @@ impl BarChart {
     /// An empty bar chart with a title.
     pub fn new(title: impl Into<String>) -> Self {
         Self {
-            title: title.into(),
-            x_label: String::new(),
-            y_label: String::new(),
+            decor: Decor::new(title.into()),
             categories: Vec::new(),
             series: Vec::new(),
             y_range: None,
-            legend: LegendPosition::Auto,
             value_labels: false,
-            size: DEFAULT_SIZE,
         }
     }
+
+    decor_methods!(BarChart);
 
     /// The group names along the x axis (e.g. scenes).
     pub fn categories<S: Into<String>>(mut self, names: impl IntoIterator<Item = S>) -> Self {
@@ -133,18 +126,6 @@ impl BarChart {
         self
     }
 
-    /// The x axis title.
-    pub fn x_label(mut self, label: impl Into<String>) -> Self {
-        self.x_label = label.into();
-        self
-    }
-
-    /// The y axis title.
-    pub fn y_label(mut self, label: impl Into<String>) -> Self {
-        self.y_label = label.into();
-        self
-    }
-
     /// Fixes the y range (default: from 0 to the data, padded).
     pub fn y_range(mut self, lo: f64, hi: f64) -> Self {
         self.y_range = Some((lo, hi));
@@ -154,18 +135,6 @@ impl BarChart {
     /// Writes each bar's value above it (where it fits).
     pub fn value_labels(mut self, on: bool) -> Self {
         self.value_labels = on;
-        self
-    }
-
-    /// Where the legend goes.
-    pub fn legend(mut self, position: LegendPosition) -> Self {
-        self.legend = position;
-        self
-    }
-
-    /// Picture size used by [`BarChart::save`] (pixels, default 800×500).
-    pub fn size(mut self, width: u32, height: u32) -> Self {
-        self.size = (width, height);
         self
     }
 
@@ -194,8 +163,7 @@ impl BarChart {
         check_size(width, height)?;
         let fonts = Fonts::for_size(width, height);
         let (w, h) = (width as f32, height as f32);
-        let top = frame::top_margin(&fonts, &self.title);
-        let bottom = h - frame::bottom_margin(&fonts, &self.x_label);
+        let (top, bottom) = self.decor.rows(&fonts, h);
         let values: Vec<f64> = self
             .series
             .iter()
@@ -215,14 +183,14 @@ impl BarChart {
             } else {
                 0.0
             };
-            let legend_px = legend::size(&fonts, &self.entries(), self.legend).1;
+            let legend_px = legend::size(&fonts, &self.entries(), self.decor.legend).1;
             let room_px = label_px + legend_px + 2.0 * legend::INSET + 4.0;
             let f = f64::from((room_px / (bottom - top)).clamp(0.05, 0.5));
             let hi = if hi > lo { hi } else { lo + 1.0 };
             Some((lo, hi + f / (1.0 - f) * (hi - lo)))
         });
         let y = Axis::new(Scale::Linear, values, range, ticks, true);
-        let left = frame::left_margin(&fonts, &self.y_label, &y);
+        let left = frame::left_margin(&fonts, &self.decor.y_label, &y);
         Ok(BarLayout {
             left,
             top,
@@ -296,15 +264,7 @@ impl BarChart {
         }
         let entries = self.entries();
         canvas.hairline(area.left, base, area.right, base, Rgb::DARK);
-        frame::axes(
-            &mut canvas,
-            &fonts,
-            &area,
-            &layout.y,
-            &self.title,
-            &self.x_label,
-            &self.y_label,
-        );
+        self.decor.axes(&mut canvas, &fonts, &area, &layout.y);
         let gw = (area.right - area.left) / layout.categories as f32;
         for (ci, name) in self.categories.iter().enumerate() {
             let cx = area.left + gw * (ci as f32 + 0.5);
@@ -316,16 +276,10 @@ impl BarChart {
             &fonts,
             &entries,
             area.tuple(),
-            self.legend,
+            self.decor.legend,
             &obstacles,
         );
         Ok(pixmap)
-    }
-
-    /// Renders at the chart's size and writes a PNG (errors name the file).
-    pub fn save(&self, path: &Path) -> Result<(), PlotError> {
-        let pixmap = self.render(self.size.0, self.size.1)?;
-        save_png(&pixmap, path)
     }
 }
 

@@ -2,10 +2,9 @@
 
 use super::axis::{Axis, Scale};
 use super::canvas::{text_width, Canvas, Fonts};
-use super::frame::{self, Area, MARGIN};
-use super::legend::{self, Entry, LegendPosition};
-use super::{check_size, save_png, PlotError, Rgb, DEFAULT_SIZE, PALETTE};
-use std::path::Path;
+use super::frame::{self, decor_methods, Area, Decor, MARGIN};
+use super::legend::{self, Entry};
+use super::{check_size, PlotError, Rgb, PALETTE};
 use tiny_skia::Pixmap;
 
 /// How a series is drawn.
@@ -119,16 +118,12 @@ impl Series {
 /// [`Chart::save`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct Chart {
-    title: String,
-    x_label: String,
-    y_label: String,
+    decor: Decor,
     series: Vec<Series>,
     x_scale: Scale,
     y_scale: Scale,
     x_range: Option<(f64, f64)>,
     y_range: Option<(f64, f64)>,
-    legend: LegendPosition,
-    size: (u32, u32),
 }
 
 /// Where a [`Chart`] puts things, for a given picture size: the plot area and
@@ -179,30 +174,16 @@ impl Chart {
     /// An empty chart with a title (may be empty).
     pub fn new(title: impl Into<String>) -> Self {
         Self {
-            title: title.into(),
-            x_label: String::new(),
-            y_label: String::new(),
+            decor: Decor::new(title.into()),
             series: Vec::new(),
             x_scale: Scale::Linear,
             y_scale: Scale::Linear,
             x_range: None,
             y_range: None,
-            legend: LegendPosition::Auto,
-            size: DEFAULT_SIZE,
         }
     }
 
-    /// The x axis title (include the unit, e.g. "size (MB)").
-    pub fn x_label(mut self, label: impl Into<String>) -> Self {
-        self.x_label = label.into();
-        self
-    }
-
-    /// The y axis title.
-    pub fn y_label(mut self, label: impl Into<String>) -> Self {
-        self.y_label = label.into();
-        self
-    }
+    decor_methods!(Chart);
 
     /// Adds a series; its default colour is the palette entry of its index.
     pub fn series(mut self, series: Series) -> Self {
@@ -239,25 +220,12 @@ impl Chart {
         self
     }
 
-    /// Where the legend goes (default: the emptiest inside corner).
-    pub fn legend(mut self, position: LegendPosition) -> Self {
-        self.legend = position;
-        self
-    }
-
-    /// Picture size used by [`Chart::save`] (pixels, default 800×500).
-    pub fn size(mut self, width: u32, height: u32) -> Self {
-        self.size = (width, height);
-        self
-    }
-
     /// Lays the chart out in a `width`×`height` picture.
     pub fn layout(&self, width: u32, height: u32) -> Result<Layout, PlotError> {
         check_size(width, height)?;
         let fonts = Fonts::for_size(width, height);
         let (w, h) = (width as f32, height as f32);
-        let top = frame::top_margin(&fonts, &self.title);
-        let bottom = h - frame::bottom_margin(&fonts, &self.x_label);
+        let (top, bottom) = self.decor.rows(&fonts, h);
         let xs = self
             .series
             .iter()
@@ -276,7 +244,7 @@ impl Chart {
             frame::max_ticks(bottom - top, 38.0),
             false,
         );
-        let left = frame::left_margin(&fonts, &self.y_label, &y);
+        let left = frame::left_margin(&fonts, &self.decor.y_label, &y);
         // First guess of the right margin, then room for the last x label.
         let x_guess = Axis::new(self.x_scale, xs.clone(), self.x_range, 8, false);
         let widest = x_guess
@@ -363,15 +331,7 @@ impl Chart {
             });
         }
 
-        frame::axes(
-            &mut canvas,
-            &fonts,
-            &area,
-            &layout.y,
-            &self.title,
-            &self.x_label,
-            &self.y_label,
-        );
+        self.decor.axes(&mut canvas, &fonts, &area, &layout.y);
         for (px, label) in x_cols {
             frame::x_tick(&mut canvas, &fonts, &area, px, label);
         }
@@ -380,16 +340,10 @@ impl Chart {
             &fonts,
             &entries,
             area.tuple(),
-            self.legend,
+            self.decor.legend,
             &obstacles,
         );
         Ok(pixmap)
-    }
-
-    /// Renders at the chart's size and writes a PNG (errors name the file).
-    pub fn save(&self, path: &Path) -> Result<(), PlotError> {
-        let pixmap = self.render(self.size.0, self.size.1)?;
-        save_png(&pixmap, path)
     }
 }
 

@@ -2,7 +2,8 @@
 
 use super::axis::Axis;
 use super::canvas::{text_height, text_width, Canvas, Fonts, HAlign, VAlign};
-use super::Rgb;
+use super::legend::LegendPosition;
+use super::{Rgb, DEFAULT_SIZE};
 
 /// Tick mark length (pixels), outside the frame.
 pub(crate) const TICK: f32 = 5.0;
@@ -35,6 +36,87 @@ impl Area {
         self.left + (frac as f32) * (self.right - self.left)
     }
 }
+
+/// The texts and placement every chart kind shares: titles, legend corner
+/// and default picture size.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Decor {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub legend: LegendPosition,
+    pub size: (u32, u32),
+}
+
+impl Decor {
+    pub fn new(title: String) -> Self {
+        Self {
+            title,
+            x_label: String::new(),
+            y_label: String::new(),
+            legend: LegendPosition::Auto,
+            size: DEFAULT_SIZE,
+        }
+    }
+
+    /// Top and bottom pixel rows of the plot area in a picture `height` tall.
+    pub fn rows(&self, fonts: &Fonts, height: f32) -> (f32, f32) {
+        (
+            top_margin(fonts, &self.title),
+            height - bottom_margin(fonts, &self.x_label),
+        )
+    }
+
+    /// The frame, y ticks and titles (see [`axes`]).
+    pub fn axes(&self, canvas: &mut Canvas<'_>, fonts: &Fonts, area: &Area, y: &Axis) {
+        axes(
+            canvas,
+            fonts,
+            area,
+            y,
+            &self.title,
+            &self.x_label,
+            &self.y_label,
+        );
+    }
+}
+
+/// The builder setters of [`Decor`]'s fields and `save`, for a chart type
+/// with a `decor: Decor` field and a `render(width, height)` method.
+macro_rules! decor_methods {
+    ($chart:ident) => {
+        /// The x axis title (include the unit, e.g. "size (MB)").
+        pub fn x_label(mut self, label: impl Into<String>) -> Self {
+            self.decor.x_label = label.into();
+            self
+        }
+
+        /// The y axis title.
+        pub fn y_label(mut self, label: impl Into<String>) -> Self {
+            self.decor.y_label = label.into();
+            self
+        }
+
+        /// Where the legend goes (default: the emptiest inside corner).
+        pub fn legend(mut self, position: $crate::plot::LegendPosition) -> Self {
+            self.decor.legend = position;
+            self
+        }
+
+        #[doc = concat!("Picture size used by [`", stringify!($chart), "::save`] (pixels, default 800×500).")]
+        pub fn size(mut self, width: u32, height: u32) -> Self {
+            self.decor.size = (width, height);
+            self
+        }
+
+        /// Renders at the chart's size and writes a PNG (errors name the file).
+        pub fn save(&self, path: &std::path::Path) -> Result<(), $crate::plot::PlotError> {
+            let pixmap = self.render(self.decor.size.0, self.decor.size.1)?;
+            $crate::plot::save_png(&pixmap, path)
+        }
+    };
+}
+pub(crate) use decor_methods;
 
 /// Top margin: room for the title.
 pub(crate) fn top_margin(fonts: &Fonts, title: &str) -> f32 {
