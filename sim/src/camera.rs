@@ -283,18 +283,7 @@ impl Transforms {
                 self.camera_angle_x
             ));
         }
-        for (name, v) in [
-            ("fl_x", self.fl_x),
-            ("fl_y", self.fl_y),
-            ("cx", self.cx),
-            ("cy", self.cy),
-        ] {
-            if let Some(v) = v {
-                if !v.is_finite() || (name.starts_with("fl") && v <= 0.0) {
-                    return Err(format!("{name} = {v} is not valid"));
-                }
-            }
-        }
+        check_intrinsics([self.fl_x, self.fl_y, self.cx, self.cy])?;
         if self.frames.is_empty() {
             return Err("no frames".into());
         }
@@ -327,21 +316,8 @@ impl Transforms {
                     }
                 }
             }
-            for (name, v) in [
-                ("fl_x", f.fl_x),
-                ("fl_y", f.fl_y),
-                ("cx", f.cx),
-                ("cy", f.cy),
-            ] {
-                if let Some(v) = v {
-                    if !v.is_finite() || (name.starts_with("fl") && v <= 0.0) {
-                        return Err(format!(
-                            "frame {i} ({}): {name} = {v} is not valid",
-                            f.file_path
-                        ));
-                    }
-                }
-            }
+            check_intrinsics([f.fl_x, f.fl_y, f.cx, f.cy])
+                .map_err(|e| format!("frame {i} ({}): {e}", f.file_path))?;
         }
         Ok(())
     }
@@ -418,6 +394,19 @@ pub fn rows_from_mat4(m: &Mat4) -> [[f64; 4]; 4] {
         }
     }
     r
+}
+
+/// Optional per-file or per-frame intrinsics `[fl_x, fl_y, cx, cy]`: finite,
+/// and focal lengths positive.
+fn check_intrinsics(values: [Option<f64>; 4]) -> Result<(), String> {
+    for (name, v) in ["fl_x", "fl_y", "cx", "cy"].into_iter().zip(values) {
+        if let Some(v) = v {
+            if !v.is_finite() || (name.starts_with("fl") && v <= 0.0) {
+                return Err(format!("{name} = {v} is not valid"));
+            }
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
