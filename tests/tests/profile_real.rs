@@ -68,16 +68,7 @@ fn fitted_real_profiles_plan_within_budget() {
     }
 
     // The committed example scene is what the command writes today.
-    let example = scene_file::load(&repo("examples/scenes/real_profiles.json")).unwrap();
-    assert_eq!(example.objects.len(), scene.objects.len());
-    for (e, o) in example.objects.iter().zip(&scene.objects) {
-        assert_eq!(e.name, o.name);
-        for (ce, co) in e.configs.iter().zip(&o.configs) {
-            assert_eq!((ce.g, ce.p), (co.g, co.p));
-            assert!(ce.size.0.abs_diff(co.size.0) <= 1 + co.size.0 / 1_000_000);
-            assert!((ce.quality - co.quality).abs() < 1e-6);
-        }
-    }
+    assert_same_scene("examples/scenes/real_profiles.json", &out);
 
     for device in ["iphone13", "pixel4"] {
         let budget_bytes = Device::lookup(device).unwrap().budget();
@@ -101,6 +92,50 @@ fn fitted_real_profiles_plan_within_budget() {
         let sum: u64 = p.objects.iter().map(|o| o.size_bytes).sum();
         assert_eq!(sum, p.total_size_bytes);
     }
+}
+
+/// The committed scene `example` has the configurations of the freshly
+/// written `fresh` (fits agree to 1 ppm in size, 1e-6 in SSIM).
+fn assert_same_scene(example: &str, fresh: &std::path::Path) {
+    let e = scene_file::load(&repo(example)).unwrap();
+    let f = scene_file::load(fresh).unwrap();
+    assert_eq!(e.objects.len(), f.objects.len(), "{example}");
+    for (eo, fo) in e.objects.iter().zip(&f.objects) {
+        assert_eq!(eo.name, fo.name, "{example}");
+        assert_eq!(eo.configs.len(), fo.configs.len(), "{example}");
+        for (ce, cf) in eo.configs.iter().zip(&fo.configs) {
+            assert_eq!((ce.g, ce.p), (cf.g, cf.p), "{example}");
+            assert!(
+                ce.size.0.abs_diff(cf.size.0) <= 1 + cf.size.0 / 1_000_000,
+                "{example} {} ({}, {}): {:?} vs {:?}",
+                eo.name,
+                ce.g,
+                ce.p,
+                ce.size,
+                cf.size
+            );
+            assert!((ce.quality - cf.quality).abs() < 1e-6, "{example}");
+        }
+    }
+}
+
+/// `examples/scenes/five_objects_profile.json` (the planning examples' and
+/// the Cortex-M firmware's five profiles) is the real fit of lego, chair,
+/// gear, tree and vase on the paper's 9 g × 5 p space.
+#[test]
+fn five_objects_profile_example_is_the_real_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("five.json");
+    fit_report(&FitArgs {
+        samples: repo("results/bake/samples.csv"),
+        objects: OBJECTS.iter().map(|s| s.to_string()).collect(),
+        out: out.clone(),
+        family: FamilyChoice::Auto,
+        grid: (0..9).map(|i| 32 + 16 * i).collect(),
+        patch: vec![5, 9, 13, 17, 21],
+    })
+    .unwrap();
+    assert_same_scene("examples/scenes/five_objects_profile.json", &out);
 }
 
 #[test]
