@@ -5,6 +5,11 @@
 //!   SSIM, every family tried, all LM starts) to a synthetic sweep of known
 //!   parameters plus noise — the 20-point sweep grid (5 g × 4 p) and the
 //!   paper's 12 variable-step points (16..512 × 3..33).
+//! - `profiler/fit_real/*`: the same on real bakes from the committed sweep
+//!   (`results/bake/samples.csv`): lego's 20 samples, its 9 variable-step
+//!   samples (g {16, 64, 256} × p {5, 9, 17}), and all 14 objects (280
+//!   samples, what `nerflex profile fit` does on the sweep; rayon over 2
+//!   cores).
 //! - `profiler/table/*`: fixed-point evaluation of a full configuration
 //!   table (`nerflex_core::profiler::Profile::fill_table`), 45 configurations
 //!   (the paper's 9 g × 5 p) and 256 (the solver's maximum), beside the `f64`
@@ -81,6 +86,31 @@ fn bench_fit(c: &mut Criterion) {
     group.finish();
 }
 
+fn bench_fit_real(c: &mut Criterion) {
+    let csv = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../results/bake/samples.csv");
+    let all = fit::samples::read(&csv).unwrap();
+    let lego = fit::object::of_object(&all, "lego");
+    let plan = sampling::variable_step_on(&[16, 32, 64, 128, 256], &[5, 9, 13, 17], Step::Triple);
+    let lego_vs: Vec<_> = lego
+        .iter()
+        .copied()
+        .filter(|s| plan.grids.contains(&s.g) && plan.patches.contains(&s.p))
+        .collect();
+    assert_eq!(lego_vs.len(), 9);
+    let mut group = c.benchmark_group("profiler/fit_real");
+    group.bench_function("lego_20", |b| {
+        b.iter(|| fit::fit_object("lego", black_box(&lego), None, FamilyChoice::Auto).unwrap())
+    });
+    group.bench_function("lego_variable_step_9", |b| {
+        b.iter(|| fit::fit_object("lego", black_box(&lego_vs), None, FamilyChoice::Auto).unwrap())
+    });
+    group.sample_size(20);
+    group.bench_function("all_14_objects_280", |b| {
+        b.iter(|| fit::fit_objects(black_box(&all), &[], None, FamilyChoice::Auto).unwrap())
+    });
+    group.finish();
+}
+
 fn bench_table(c: &mut Criterion) {
     let (s, q) = truth();
     let profile = Profile::from_params(&s, &q).unwrap();
@@ -116,5 +146,5 @@ fn bench_table(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_fit, bench_table);
+criterion_group!(benches, bench_fit, bench_fit_real, bench_table);
 criterion_main!(benches);

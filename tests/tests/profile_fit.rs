@@ -4,7 +4,7 @@
 
 use nerflex_core::profiler::{Curve, Family, Params};
 use nerflex_sim::cli::profile::{
-    accuracy_report, fit_report, samples_report, AccuracyArgs, FitArgs, SamplesArgs,
+    accuracy_report, fit_report, samples_report, AccuracyArgs, FitArgs, SamplesArgs, TrainOn,
 };
 use nerflex_sim::fit::{
     self, accuracy, curve, samples,
@@ -315,6 +315,12 @@ fn accuracy_command_prints_table_and_draws() {
         samples: csv.clone(),
         objects: vec![],
         family: FamilyChoice::Auto,
+        train_on: TrainOn::LeaveOneOut,
+        step: Step::Triple,
+        train_grid: vec![],
+        train_patch: vec![],
+        max_size_mb: None,
+        max_g: None,
         plots: Some(plots.clone()),
         json: Some(dir.path().join("acc.json")),
     })
@@ -337,6 +343,108 @@ fn accuracy_command_prints_table_and_draws() {
     assert!(acc.all.ssim.mean < 0.004, "{:?}", acc.all);
     assert!(acc.all.size_rel.mean < 0.03, "{:?}", acc.all);
     assert!(acc.all.ssim.mean > 0.0);
+}
+
+#[test]
+fn accuracy_on_variable_step_points_and_restricted() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = write_sweep(dir.path());
+    let base = AccuracyArgs {
+        samples: csv.clone(),
+        objects: vec!["alpha".into()],
+        family: FamilyChoice::Auto,
+        train_on: TrainOn::VariableStep,
+        step: Step::Triple,
+        train_grid: vec![],
+        train_patch: vec![],
+        max_size_mb: None,
+        max_g: None,
+        plots: None,
+        json: None,
+    };
+    // On g {16,…,256} × p {5,9,13,17} the rule takes g {16, 64, 256}
+    // (each next one the first ≥ 3·g′) × p {5, 9, 17}: 9 of 20 samples.
+    let text = accuracy_report(&base).unwrap();
+    assert!(
+        text.contains("trained on g {16, 64, 256} × p {5, 9, 17} only"),
+        "{text}"
+    );
+    let all = samples::read(&csv).unwrap();
+    let acc = accuracy::train_subset(
+        &all,
+        &["alpha".into()],
+        FamilyChoice::Auto,
+        &[16, 64, 256],
+        &[5, 9, 17],
+    )
+    .unwrap();
+    assert_eq!(acc.objects[0].trained_on, 9);
+    assert_eq!(acc.points.len(), 11);
+    assert!(acc
+        .points
+        .iter()
+        .all(|p| !([16, 64, 256].contains(&p.g) && [5, 9, 17].contains(&p.p))));
+    // Nine noisy points still predict the rest within the noise's scale.
+    assert!(acc.all.ssim.mean < 0.006, "{:?}", acc.all);
+    assert!(acc.all.size_rel.mean < 0.05, "{:?}", acc.all);
+
+    // Restricting the summary keeps the fits and drops points.
+    let small = acc.restricted("g ≤ 64", |p| p.g <= 64);
+    assert_eq!(
+        small.points.len(),
+        acc.points.iter().filter(|p| p.g <= 64).count()
+    );
+    assert_eq!(small.unrestricted, 11);
+    assert_eq!(small.objects[0].fit, acc.objects[0].fit);
+    let text = accuracy_report(&AccuracyArgs {
+        train_on: TrainOn::LeaveOneOut,
+        max_size_mb: Some(10.0),
+        ..base.clone()
+    })
+    .unwrap();
+    let kept = all
+        .iter()
+        .filter(|s| s.object == "alpha" && s.size.0 <= 10_000_000)
+        .count();
+    assert!(
+        text.contains(&format!("measured size ≤ 10 MB: {kept} of 20")),
+        "{text}"
+    );
+
+    // Explicit training lists; conflicting or bad flags are clear errors.
+    let text = accuracy_report(&AccuracyArgs {
+        train_on: TrainOn::LeaveOneOut,
+        train_patch: vec![5, 17],
+        ..base.clone()
+    })
+    .unwrap();
+    assert!(
+        text.contains("trained on g {16, 32, 64, 128, 256} × p {5, 17}"),
+        "{text}"
+    );
+    let e = accuracy_report(&AccuracyArgs {
+        train_grid: vec![16],
+        ..base.clone()
+    })
+    .unwrap_err();
+    assert!(format!("{e:#}").contains("give one or the other"), "{e:#}");
+    let e = accuracy_report(&AccuracyArgs {
+        train_on: TrainOn::LeaveOneOut,
+        train_grid: vec![16, 32],
+        train_patch: vec![5],
+        ..base.clone()
+    })
+    .unwrap_err();
+    assert!(
+        format!("{e:#}").contains("need at least 4 samples"),
+        "{e:#}"
+    );
+    let e = accuracy_report(&AccuracyArgs {
+        max_size_mb: Some(-1.0),
+        ..base
+    })
+    .unwrap_err();
+    assert!(format!("{e:#}").contains("--max-size-mb"), "{e:#}");
 }
 
 #[test]

@@ -6,8 +6,11 @@
 //! - `fit --samples FILE.csv [--object NAME]… --out profiles.json`: fits
 //!   both models of each object and writes a scene file in profile form
 //!   (`nerflex plan --scene profiles.json` reads it).
-//! - `accuracy --samples FILE.csv [--plots DIR]`: leave-one-out errors beside
-//!   the paper's, and fitted curves over the measured points (PNG).
+//! - `accuracy --samples FILE.csv [--train-on leave-one-out|variable-step]
+//!   [--max-size-mb MB] [--max-g G] [--plots DIR]`: prediction errors beside
+//!   the paper's (leave-one-out, or trained on the variable-step points
+//!   only), optionally summarised over the held-out points in a size or
+//!   grid range, and fitted curves over the measured points (PNG).
 
 use crate::fit::{
     self, accuracy, plots, profiles, samples,
@@ -15,6 +18,7 @@ use crate::fit::{
     FamilyChoice, ObjectFit,
 };
 use anyhow::Context;
+use nerflex_core::units::BYTES_PER_MB;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -92,12 +96,47 @@ pub struct AccuracyArgs {
     /// Model family (see `fit`).
     #[arg(long, value_enum, default_value_t = FamilyChoice::Auto)]
     pub family: FamilyChoice,
-    /// Write `<object>_ssim.png` and `<object>_size.png` here.
+    /// What the fits see: every sample but the predicted one
+    /// (`leave-one-out`), or only the sweep's variable-step points
+    /// (`variable-step`, see `--step`; all other samples are predicted).
+    #[arg(long, value_enum, default_value_t = TrainOn::LeaveOneOut)]
+    pub train_on: TrainOn,
+    /// With `--train-on variable-step`: the next g after g′ is the sweep's
+    /// first g ≥ 3·g′ (`triple`, the paper's "step 2·g′") or ≥ 2·g′ (`double`).
+    #[arg(long, value_enum, default_value_t = Step::Triple)]
+    pub step: Step,
+    /// Train only on samples with these g (and `--train-patch` p) values;
+    /// every other sample is predicted. Default with `--train-patch` alone:
+    /// every g.
+    #[arg(long, value_name = "G,G,…", value_delimiter = ',')]
+    pub train_grid: Vec<u32>,
+    /// Train only on samples with these p values (see `--train-grid`).
+    #[arg(long, value_name = "P,P,…", value_delimiter = ',')]
+    pub train_patch: Vec<u32>,
+    /// Summarise only held-out points whose measured size is at most this
+    /// many MB (10^6 bytes); the fits still use every training sample.
+    #[arg(long, value_name = "MB")]
+    pub max_size_mb: Option<f64>,
+    /// Summarise only held-out points with g at most this (fits unchanged).
+    #[arg(long, value_name = "G")]
+    pub max_g: Option<u32>,
+    /// Write `<object>_ssim.png` and `<object>_size.png` here (the curves of
+    /// the full fit, or of the training fit with a training subset).
     #[arg(long, value_name = "DIR")]
     pub plots: Option<PathBuf>,
     /// Also write the summaries and every left-out point as JSON here.
     #[arg(long, value_name = "FILE.json")]
     pub json: Option<PathBuf>,
+}
+
+/// What `nerflex profile accuracy` trains its fits on.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum TrainOn {
+    /// Each sample predicted from all the object's other samples.
+    #[default]
+    LeaveOneOut,
+    /// Only the variable-step points of the sweep's g and p values.
+    VariableStep,
 }
 
 /// Runs `nerflex profile`.
@@ -251,17 +290,69 @@ pub fn fit_report(args: &FitArgs) -> anyhow::Result<String> {
 /// Runs the leave-one-out evaluation, draws plots, returns the printout.
 pub fn accuracy_report(args: &AccuracyArgs) -> anyhow::Result<String> {
     let all = load_samples(&args.samples)?;
+    let names = fit::object::select(&all, &args.objects)?;
+    let selected: Vec<&samples::Sample> =
+        all.iter().filter(|s| names.contains(&s.object)).collect();
+    let distinct = |f: fn(&samples::Sample) -> u32| {
+        let mut v: Vec<u32> = selected.iter().map(|s| f(s)).collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    };
+    let lists_given = !args.train_grid.is_empty() || !args.train_patch.is_empty();
+    let subset = match (args.train_on, lists_given) {
+        (TrainOn::VariableStep, true) => anyhow::bail!(
+            "--train-grid/--train-patch and --train-on variable-step both choose the \
+             training samples; give one or the other"
+        ),
+        (TrainOn::VariableStep, false) => {
+            let plan =
+                sampling::variable_step_on(&distinct(|s| s.g), &distinct(|s| s.p), args.step);
+            Some((plan.grids, plan.patches))
+        }
+        (TrainOn::LeaveOneOut, true) => {
+            let or_all = |v: &Vec<u32>, f| if v.is_empty() { distinct(f) } else { v.clone() };
+            Some((
+                or_all(&args.train_grid, |s| s.g),
+                or_all(&args.train_patch, |s| s.p),
+            ))
+        }
+        (TrainOn::LeaveOneOut, false) => None,
+    };
+    if let Some(mb) = args.max_size_mb {
+        if !(mb.is_finite() && mb > 0.0) {
+            anyhow::bail!("--max-size-mb must be a positive number of MB, got {mb}");
+        }
+    }
     let start = Instant::now();
-    let acc = accuracy::leave_one_out(&all, &args.objects, args.family)
-        .with_context(|| format!("leave-one-out on {}", args.samples.display()))?;
+    let mut acc = match &subset {
+        None => accuracy::leave_one_out(&all, &args.objects, args.family)
+            .with_context(|| format!("leave-one-out on {}", args.samples.display()))?,
+        Some((grids, patches)) => {
+            accuracy::train_subset(&all, &args.objects, args.family, grids, patches)
+                .with_context(|| format!("training subset of {}", args.samples.display()))?
+        }
+    };
     let elapsed = start.elapsed();
+    if let Some(mb) = args.max_size_mb {
+        let limit = mb * BYTES_PER_MB as f64;
+        acc = acc.restricted(&format!("measured size ≤ {mb} MB"), |p| {
+            p.size_measured.0 as f64 <= limit
+        });
+    }
+    if let Some(g) = args.max_g {
+        acc = acc.restricted(&format!("g ≤ {g}"), |p| p.g <= g);
+    }
     let mut out = accuracy::table(&acc);
     out.push('\n');
     out.push_str(&accuracy::fit_table(&acc));
-    let fits: usize = acc.objects.iter().map(|o| o.fit.samples + 1).sum();
+    let fits: usize = match subset {
+        None => acc.objects.iter().map(|o| o.fit.samples + 1).sum(),
+        Some(_) => acc.objects.len(),
+    };
     let _ = writeln!(
         out,
-        "\n{fits} fits (leave-one-out and full) in {:.3} s",
+        "\n{fits} object fits in {:.3} s",
         elapsed.as_secs_f64()
     );
     if let Some(path) = &args.json {

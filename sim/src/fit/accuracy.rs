@@ -1,12 +1,25 @@
-//! Leave-one-out accuracy of the fitted profiles on measured samples.
+//! Prediction accuracy of the fitted profiles on measured samples.
 //!
-//! For each object and each of its samples, both curves are fitted to the
-//! object's *other* samples (over the object's full domain, so the bounds do
-//! not change) and the left-out configuration is predicted by the
-//! fixed-point `nerflex_core::profiler` — the same numbers the planner and
-//! the device use. The errors `|predicted − measured|` (SSIM, and size in
-//! MB = 10^6 bytes) are summarised as mean ± standard deviation (population
-//! sd, numpy's default), beside the NeRFlex paper's figures.
+//! Two ways to hold configurations out ([`Training`]):
+//!
+//! - **Leave-one-out** ([`leave_one_out`]): for each object and each of its
+//!   samples, both curves are fitted to the object's *other* samples and the
+//!   left-out configuration is predicted.
+//! - **Training subset** ([`train_subset`]): both curves are fitted once to
+//!   the samples at the training (g, p) pairs — e.g. the paper's
+//!   variable-step points ([`super::sampling::variable_step_on`]) — and
+//!   every other configuration is predicted: how the profiler is meant to be
+//!   used, baking a few samples to predict the rest.
+//!
+//! Fits are bounded over the object's full sampled domain either way (the
+//! bounds do not move with what is held out), and predictions come from
+//! the fixed-point `nerflex_core::profiler` — the same numbers the planner
+//! and the device use. The errors `|predicted − measured|` (SSIM, and size
+//! in MB = 10^6 bytes) are summarised as mean ± standard deviation
+//! (population sd, numpy's default), beside the NeRFlex paper's figures;
+//! [`Accuracy::restricted`] summarises a subset of the held-out points (for
+//! example those whose measured size is in the paper's regime) without
+//! changing the fits.
 
 use super::curve::{Domain, FamilyChoice};
 use super::object::{self, fit_object, ObjectFit};
@@ -64,7 +77,7 @@ pub const PAPER_SIZE_MB: Stats = Stats {
     n: 45,
 };
 
-/// One left-out configuration.
+/// One held-out configuration and its prediction.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LooPoint {
     /// Object name.
@@ -75,11 +88,11 @@ pub struct LooPoint {
     pub p: u32,
     /// Measured size.
     pub size_measured: Bytes,
-    /// Size predicted without this sample.
+    /// Size predicted by a fit that did not see this sample.
     pub size_predicted: Bytes,
     /// Measured SSIM.
     pub ssim_measured: f64,
-    /// SSIM predicted without this sample.
+    /// SSIM predicted by a fit that did not see this sample.
     pub ssim_predicted: f64,
     /// Family chosen for size without this sample.
     pub size_family: Family,
@@ -130,21 +143,121 @@ impl ErrorSummary {
 /// One object's accuracy.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ObjectAccuracy {
-    /// The fit on all of the object's samples.
+    /// Leave-one-out: the fit on all of the object's samples; training
+    /// subset: the fit on the training samples (the one that predicted).
     pub fit: ObjectFit,
-    /// Its leave-one-out errors.
+    /// Samples the fit(s) saw: all but one (leave-one-out) or the training
+    /// subset.
+    pub trained_on: usize,
+    /// Errors of its held-out points.
     pub errors: ErrorSummary,
 }
 
-/// Leave-one-out accuracy over several objects.
+/// What the fits are trained on.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Training {
+    /// Each sample predicted from all of the object's other samples.
+    LeaveOneOut,
+    /// One fit per object on the samples at these (g, p) pairs (every g
+    /// with every p); all other samples are predicted.
+    Subset {
+        /// Training grid values.
+        grids: Vec<u32>,
+        /// Training patch values.
+        patches: Vec<u32>,
+    },
+}
+
+impl Training {
+    /// One line saying what was trained on and what was predicted.
+    pub fn describe(&self) -> String {
+        match self {
+            Training::LeaveOneOut => {
+                "leave-one-out: each configuration predicted from the object's other samples".into()
+            }
+            Training::Subset { grids, patches } => {
+                let list = |v: &[u32]| v.iter().map(u32::to_string).collect::<Vec<_>>().join(", ");
+                format!(
+                    "trained on g {{{}}} × p {{{}}} only; every other configuration predicted",
+                    list(grids),
+                    list(patches)
+                )
+            }
+        }
+    }
+}
+
+/// Accuracy over several objects.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Accuracy {
-    /// Every left-out configuration.
+    /// How the fits were trained.
+    pub training: Training,
+    /// Every held-out configuration (after any restriction).
     pub points: Vec<LooPoint>,
     /// Per object, in order.
     pub objects: Vec<ObjectAccuracy>,
     /// Over all points.
     pub all: ErrorSummary,
+    /// Held-out points before [`Accuracy::restricted`] (equal to
+    /// `points.len()` when unrestricted).
+    pub unrestricted: usize,
+    /// What [`Accuracy::restricted`] kept, in words (empty: everything).
+    pub restriction: String,
+}
+
+impl Accuracy {
+    fn assemble(
+        training: Training,
+        per_object: Vec<(ObjectFit, usize, Vec<LooPoint>)>,
+    ) -> Accuracy {
+        let points: Vec<LooPoint> = per_object
+            .iter()
+            .flat_map(|(_, _, p)| p.iter().cloned())
+            .collect();
+        let objects = per_object
+            .into_iter()
+            .map(|(fit, trained_on, pts)| ObjectAccuracy {
+                fit,
+                trained_on,
+                errors: ErrorSummary::of(&pts),
+            })
+            .collect();
+        Accuracy {
+            training,
+            all: ErrorSummary::of(&points),
+            unrestricted: points.len(),
+            points,
+            objects,
+            restriction: String::new(),
+        }
+    }
+
+    /// The same fits, summarised over the held-out points `keep` accepts
+    /// (`what` says which, for the printout).
+    pub fn restricted(&self, what: &str, keep: impl Fn(&LooPoint) -> bool) -> Accuracy {
+        let points: Vec<LooPoint> = self.points.iter().filter(|p| keep(p)).cloned().collect();
+        let objects = self
+            .objects
+            .iter()
+            .map(|o| ObjectAccuracy {
+                errors: ErrorSummary::of(points.iter().filter(|p| p.object == o.fit.name)),
+                ..o.clone()
+            })
+            .collect();
+        let restriction = match (self.restriction.is_empty(), what.is_empty()) {
+            (true, _) => what.to_string(),
+            (false, true) => self.restriction.clone(),
+            (false, false) => format!("{}, {what}", self.restriction),
+        };
+        Accuracy {
+            training: self.training.clone(),
+            all: ErrorSummary::of(&points),
+            points,
+            objects,
+            unrestricted: self.unrestricted,
+            restriction,
+        }
+    }
 }
 
 /// Leave-one-out over every object of `samples` (or those in `only`).
@@ -154,25 +267,67 @@ pub fn leave_one_out(
     choice: FamilyChoice,
 ) -> Result<Accuracy, FitError> {
     let names = object::select(samples, only)?;
-    let per_object: Vec<(ObjectFit, Vec<LooPoint>)> = names
+    let per_object = names
         .par_iter()
         .map(|name| object_loo(name, &object::of_object(samples, name), choice))
         .collect::<Result<_, _>>()?;
-    let points: Vec<LooPoint> = per_object
-        .iter()
-        .flat_map(|(_, p)| p.iter().cloned())
-        .collect();
-    let objects = per_object
-        .into_iter()
-        .map(|(fit, pts)| ObjectAccuracy {
-            fit,
-            errors: ErrorSummary::of(&pts),
+    Ok(Accuracy::assemble(Training::LeaveOneOut, per_object))
+}
+
+/// Fits each object (of `samples`, or those in `only`) once on its samples
+/// at `grids` × `patches` and predicts all its other samples.
+pub fn train_subset(
+    samples: &[Sample],
+    only: &[String],
+    choice: FamilyChoice,
+    grids: &[u32],
+    patches: &[u32],
+) -> Result<Accuracy, FitError> {
+    let names = object::select(samples, only)?;
+    let per_object = names
+        .par_iter()
+        .map(|name| {
+            let all = object::of_object(samples, name);
+            let (train, test): (Vec<&Sample>, Vec<&Sample>) = all
+                .iter()
+                .partition(|s| grids.contains(&s.g) && patches.contains(&s.p));
+            let (size_pts, _) = object::points(&all);
+            let fit = fit_object(name, &train, Domain::of_points(&size_pts), choice)?;
+            let points = test
+                .iter()
+                .map(|s| predict(name, &fit, s))
+                .collect::<Result<Vec<_>, _>>()?;
+            Ok((fit, train.len(), points))
         })
-        .collect();
-    Ok(Accuracy {
-        all: ErrorSummary::of(&points),
-        points,
-        objects,
+        .collect::<Result<_, FitError>>()?;
+    Ok(Accuracy::assemble(
+        Training::Subset {
+            grids: grids.to_vec(),
+            patches: patches.to_vec(),
+        },
+        per_object,
+    ))
+}
+
+/// The fixed-point prediction of `fit` at `left`'s configuration.
+fn predict(name: &str, fit: &ObjectFit, left: &Sample) -> Result<LooPoint, FitError> {
+    let config = fit
+        .profile()?
+        .config(left.g, left.p)
+        .map_err(|source| FitError::Profile {
+            object: name.to_string(),
+            source,
+        })?;
+    Ok(LooPoint {
+        object: name.to_string(),
+        g: left.g,
+        p: left.p,
+        size_measured: left.size,
+        size_predicted: config.size,
+        ssim_measured: left.ssim,
+        ssim_predicted: config.quality.to_f64(),
+        size_family: fit.size.best.params.family,
+        quality_family: fit.quality.best.params.family,
     })
 }
 
@@ -180,7 +335,7 @@ fn object_loo(
     name: &str,
     samples: &[&Sample],
     choice: FamilyChoice,
-) -> Result<(ObjectFit, Vec<LooPoint>), FitError> {
+) -> Result<(ObjectFit, usize, Vec<LooPoint>), FitError> {
     let (size_pts, _) = object::points(samples);
     let domain = Domain::of_points(&size_pts);
     let full = fit_object(name, samples, domain, choice)?;
@@ -195,27 +350,10 @@ fn object_loo(
                 .map(|(_, s)| *s)
                 .collect();
             let fit = fit_object(name, &rest, domain, choice)?;
-            let config =
-                fit.profile()?
-                    .config(left.g, left.p)
-                    .map_err(|source| FitError::Profile {
-                        object: name.to_string(),
-                        source,
-                    })?;
-            Ok(LooPoint {
-                object: name.to_string(),
-                g: left.g,
-                p: left.p,
-                size_measured: left.size,
-                size_predicted: config.size,
-                ssim_measured: left.ssim,
-                ssim_predicted: config.quality.to_f64(),
-                size_family: fit.size.best.params.family,
-                quality_family: fit.quality.best.params.family,
-            })
+            predict(name, &fit, left)
         })
         .collect::<Result<Vec<_>, FitError>>()?;
-    Ok((full, points))
+    Ok((full, samples.len().saturating_sub(1), points))
 }
 
 /// The accuracy table (text), ours beside the paper's.
@@ -223,19 +361,34 @@ pub fn table(acc: &Accuracy) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "Leave-one-out prediction error |predicted − measured|, mean ± sd (population)"
+        "Prediction error |predicted − measured|, mean ± sd (population)"
     );
-    let _ = writeln!(
-        out,
-        "{:<16} {:>4}  {:>19}  {:>19}  {:>15}  {:<16}",
-        "object", "n", "SSIM", "size (MB)", "size (%)", "family size/SSIM"
-    );
-    let row = |out: &mut String, name: &str, n: usize, e: &ErrorSummary, fam: &str| {
+    let _ = writeln!(out, "# {}", acc.training.describe());
+    if !acc.restriction.is_empty() {
         let _ = writeln!(
             out,
-            "{:<16} {:>4}  {:>8.4} ± {:<8.4}  {:>8.3} ± {:<8.3}  {:>6.2} ± {:<6.2}  {:<16}",
+            "# held-out points with {}: {} of {}",
+            acc.restriction,
+            acc.points.len(),
+            acc.unrestricted
+        );
+    }
+    let _ = writeln!(
+        out,
+        "{:<16} {:>5} {:>4}  {:>19}  {:>19}  {:>15}  {:<16}",
+        "object", "train", "n", "SSIM", "size (MB)", "size (%)", "family size/SSIM"
+    );
+    let row = |out: &mut String, name: &str, train: &str, e: &ErrorSummary, fam: &str| {
+        if e.ssim.n == 0 {
+            let _ = writeln!(out, "{name:<16} {train:>5} {:>4}  (no held-out points)", 0);
+            return;
+        }
+        let _ = writeln!(
+            out,
+            "{:<16} {:>5} {:>4}  {:>8.4} ± {:<8.4}  {:>8.3} ± {:<8.3}  {:>6.2} ± {:<6.2}  {:<16}",
             name,
-            n,
+            train,
+            e.ssim.n,
             e.ssim.mean,
             e.ssim.sd,
             e.size_mb.mean,
@@ -250,13 +403,20 @@ pub fn table(acc: &Accuracy) -> String {
             "{}/{}",
             o.fit.size.best.params.family, o.fit.quality.best.params.family
         );
-        row(&mut out, &o.fit.name, o.errors.ssim.n, &o.errors, &fam);
+        row(
+            &mut out,
+            &o.fit.name,
+            &o.trained_on.to_string(),
+            &o.errors,
+            &fam,
+        );
     }
-    row(&mut out, "all", acc.all.ssim.n, &acc.all, "");
+    row(&mut out, "all", "", &acc.all, "");
     let _ = writeln!(
         out,
-        "{:<16} {:>4}  {:>8.4} ± {:<8.4}  {:>8.3} ± {:<8.3}  {:>15}  (4 objects, MobileNeRF)",
+        "{:<16} {:>5} {:>4}  {:>8.4} ± {:<8.4}  {:>8.3} ± {:<8.3}  {:>15}  (4 objects, MobileNeRF)",
         "NeRFlex paper",
+        "",
         PAPER_SSIM.n,
         PAPER_SSIM.mean,
         PAPER_SSIM.sd,
@@ -273,11 +433,20 @@ pub fn to_json(acc: &Accuracy) -> serde_json::Value {
     use serde_json::json;
     let stats = |s: &Stats| json!({"mean": s.mean, "sd": s.sd, "n": s.n});
     let summary = |e: &ErrorSummary| json!({"ssim": stats(&e.ssim), "size_mb": stats(&e.size_mb), "size_rel": stats(&e.size_rel)});
+    let training = match &acc.training {
+        Training::LeaveOneOut => json!("leave-one-out"),
+        Training::Subset { grids, patches } => json!({"grids": grids, "patches": patches}),
+    };
     json!({
+        "training": training,
+        "restriction": acc.restriction,
+        "held_out": acc.points.len(),
+        "held_out_unrestricted": acc.unrestricted,
         "all": summary(&acc.all),
         "paper": {"ssim": stats(&PAPER_SSIM), "size_mb": stats(&PAPER_SIZE_MB)},
         "objects": acc.objects.iter().map(|o| json!({
             "name": o.fit.name,
+            "trained_on": o.trained_on,
             "errors": summary(&o.errors),
             "size_family": o.fit.size.best.params.family.name(),
             "quality_family": o.fit.quality.best.params.family.name(),
@@ -295,7 +464,11 @@ pub fn to_json(acc: &Accuracy) -> serde_json::Value {
 /// In-sample residuals of the full fits (RMSE), one line per object.
 pub fn fit_table(acc: &Accuracy) -> String {
     let mut out = String::new();
-    let _ = writeln!(out, "Fit on all samples: RMSE per family (chosen = lower)");
+    let what = match acc.training {
+        Training::LeaveOneOut => "all samples",
+        Training::Subset { .. } => "the training samples",
+    };
+    let _ = writeln!(out, "Fit on {what}: RMSE per family (chosen = lower)");
     let _ = writeln!(
         out,
         "{:<16} {:>4}  {:>14} {:>14}  {:>10} {:>10}",

@@ -3,8 +3,9 @@
 //!
 //! - **Bounds by reparameterisation.** LM sees `θ ∈ R⁴`; the model sees
 //!   `k = e^θ₀ > 0` and `a`, `b`, `m` each `lo + (hi − lo)·σ(θᵢ)` inside its
-//!   bounds ([`Bounds`]): `a ∈ [−g_min/2, 2·g_max]`, `b ∈ [−p_min/2, 2·p_max]`
-//!   (so `g + a ≥ g/2 > 0`: no pole over the domain), size `m ∈ [0, min S]`
+//!   bounds ([`Bounds`]): `a ∈ [−g_min/2, 2·g_max]`, `b ∈ [−p_min/2,
+//!   max(256 − 2·p_max, 2·p_max)]` (so `g + a ≥ g/2 > 0`: no pole over the
+//!   domain; `p + b` stays in the fixed-point range), size `m ∈ [0, min S]`
 //!   (a constant part no larger than the smallest bake), quality
 //!   `m ∈ [0, 1]` (an SSIM asymptote).
 //! - **Starting values.** For `(a, b)` on a small grid of starts, the model
@@ -21,7 +22,7 @@
 use super::FitError;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{storage::Owned, DVector, Dyn, OMatrix, Vector4, U4};
-use nerflex_core::profiler::{Curve, Family, Params};
+use nerflex_core::profiler::{Curve, Family, Params, MAX_P_BASE};
 
 /// One measured point: grid, patch, measured value (bytes or SSIM).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -94,7 +95,16 @@ impl Bounds {
     /// The bounds used for `curve` over `domain` with measured `points`.
     pub fn new(curve: Curve, domain: Domain, points: &[Point]) -> Bounds {
         let a = (-(domain.g_min as f64) / 2.0, 2.0 * domain.g_max as f64);
-        let b = (-(domain.p_min as f64) / 2.0, 2.0 * domain.p_max as f64);
+        // `b` may grow far beyond `p_max`: on disk the texel atlases are PNG-
+        // compressed, so size grows much more slowly than p² and a large `b`
+        // (`(p+b)² ≈ b² + 2bp`, nearly affine in p) is how the model says so.
+        // The cap keeps `p + b ≤ MAX_P_BASE − p_max` inside the fixed-point
+        // range over the domain, and is 2·p_max at the top of that range.
+        let p_max = domain.p_max as f64;
+        let b = (
+            -(domain.p_min as f64) / 2.0,
+            (MAX_P_BASE - 2.0 * p_max).max(2.0 * p_max),
+        );
         let m = match curve {
             Curve::Size => (
                 0.0,

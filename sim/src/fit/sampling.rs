@@ -100,6 +100,55 @@ pub fn variable_step(
     Ok(SamplePlan { grids, patches })
 }
 
+/// The variable-step rule applied to an existing sweep: which of the
+/// available `grids` and `patches` (any order, duplicates allowed) the
+/// strategy would have baked.
+///
+/// `g` starts at the smallest available value; each next one is the
+/// smallest available value at least `factor·g′` (the rule's next value,
+/// rounded *up* to the sweep's grid). `p` takes the smallest, the largest,
+/// and the available value nearest the range's midpoint (ties go to the
+/// smaller, as the midpoint is rounded down). On the bake sweep's
+/// g ∈ {16, 32, 64, 128, 256}, p ∈ {5, 9, 13, 17}: `triple` gives
+/// g {16, 64, 256} × p {5, 9, 17}; `double` gives every g × p {5, 9, 17}.
+pub fn variable_step_on(grids: &[u32], patches: &[u32], step: Step) -> SamplePlan {
+    let mut gs: Vec<u32> = grids.to_vec();
+    gs.sort_unstable();
+    gs.dedup();
+    let mut ps: Vec<u32> = patches.to_vec();
+    ps.sort_unstable();
+    ps.dedup();
+    let mut chosen = Vec::new();
+    if let Some(&first) = gs.first() {
+        chosen.push(first);
+        let mut cur = first;
+        while let Some(&next) = gs
+            .iter()
+            .find(|&&g| g > cur && u64::from(g) >= u64::from(cur) * u64::from(step.factor()))
+        {
+            chosen.push(next);
+            cur = next;
+        }
+    }
+    let mut pick = Vec::new();
+    if let (Some(&lo), Some(&hi)) = (ps.first(), ps.last()) {
+        // Twice the midpoint, to stay in integers.
+        let mid2 = u64::from(lo) + u64::from(hi);
+        let nearest = ps
+            .iter()
+            .copied()
+            .min_by_key(|&p| (u64::from(p) * 2).abs_diff(mid2))
+            .unwrap_or(lo);
+        pick = vec![lo, nearest, hi];
+        pick.sort_unstable();
+        pick.dedup();
+    }
+    SamplePlan {
+        grids: chosen,
+        patches: pick,
+    }
+}
+
 /// An inclusive range of positive integers parsed from `LO..HI` or
 /// `LO..=HI` (both ends included either way).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -143,6 +192,26 @@ mod tests {
         );
         let plan = variable_step(16..=512, 3..=33, Step::Double).unwrap();
         assert_eq!(plan.grids, vec![16, 32, 64, 128, 256, 512]);
+    }
+
+    #[test]
+    fn on_an_existing_sweep() {
+        let (g, p) = ([256, 16, 32, 64, 128], [5, 9, 13, 17, 9]);
+        let plan = variable_step_on(&g, &p, Step::Triple);
+        assert_eq!(
+            (plan.grids, plan.patches),
+            (vec![16, 64, 256], vec![5, 9, 17])
+        );
+        let plan = variable_step_on(&g, &p, Step::Double);
+        assert_eq!(plan.grids, vec![16, 32, 64, 128, 256]);
+        // Exact multiples are taken; gaps round up; the midpoint is exact.
+        let plan = variable_step_on(&[4, 12, 30, 36, 200], &[3, 18, 33], Step::Triple);
+        assert_eq!(
+            (plan.grids, plan.patches),
+            (vec![4, 12, 36, 200], vec![3, 18, 33])
+        );
+        let plan = variable_step_on(&[], &[7], Step::Triple);
+        assert_eq!((plan.grids, plan.patches), (vec![], vec![7]));
     }
 
     #[test]
