@@ -22,6 +22,7 @@
 
 pub mod atlas;
 pub mod carve;
+pub mod compare;
 pub mod mlp_fit;
 pub mod quads;
 pub mod sweep;

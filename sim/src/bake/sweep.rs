@@ -334,31 +334,63 @@ pub fn measure(
     lpips: Option<&Lpips>,
     keep_renders: bool,
 ) -> anyhow::Result<(Quality, Vec<RgbaImage>)> {
+    let m = measure_views(obj, test, render, lpips, keep_renders)?;
+    Ok((m.mean, m.renders))
+}
+
+/// What [`measure_views`] found: the means, each view's scores and, if
+/// asked, the renders.
+#[derive(Debug, Clone)]
+pub struct Measured {
+    /// Means over the test views (as in the samples CSV).
+    pub mean: Quality,
+    /// Each test view's scores, in order (PSNR capped at 100 dB).
+    pub views: Vec<Quality>,
+    /// The renders, if asked for.
+    pub renders: Vec<RgbaImage>,
+}
+
+/// [`measure`] with each view's scores kept.
+pub fn measure_views(
+    obj: &Asset,
+    test: &[(Camera, RgbaImage)],
+    render: &RenderFn<'_>,
+    lpips: Option<&Lpips>,
+    keep_renders: bool,
+) -> anyhow::Result<Measured> {
     if test.is_empty() {
         bail!("no test views to measure against");
     }
     let mut sums = (0.0, 0.0, 0.0);
     let mut renders = Vec::new();
+    let mut views = Vec::with_capacity(test.len());
     for (i, (cam, gt)) in test.iter().enumerate() {
         let img = render(obj, cam).with_context(|| format!("rendering test view {i}"))?;
         let s = Metrics::compare(&img, gt, lpips)
             .with_context(|| format!("measuring test view {i}"))?;
+        let psnr = s.psnr.min(100.0); // identical images: cap inf at 100 dB
         sums.0 += s.ssim;
-        sums.1 += s.psnr.min(100.0); // identical images: cap inf at 100 dB
+        sums.1 += psnr;
         sums.2 += s.lpips.unwrap_or(0.0);
+        views.push(Quality {
+            ssim: s.ssim,
+            psnr,
+            lpips: s.lpips,
+        });
         if keep_renders {
             renders.push(img);
         }
     }
     let n = test.len() as f64;
-    Ok((
-        Quality {
+    Ok(Measured {
+        mean: Quality {
             ssim: sums.0 / n,
             psnr: sums.1 / n,
             lpips: lpips.map(|_| sums.2 / n),
         },
+        views,
         renders,
-    ))
+    })
 }
 
 /// Bakes, encodes and measures one configuration.
@@ -676,12 +708,10 @@ pub fn plot_objects(samples: &[Sample], dir: &Path) -> anyhow::Result<Vec<PathBu
     Ok(written)
 }
 
-/// Where a sweep's samples break "size grows and quality rises with g and
-/// with p": one line per pair of neighbouring configurations (next g at
-/// the same p, next p at the same g) whose size does not grow or whose SSIM
-/// falls by more than `ssim_tolerance`.
-pub fn monotonicity_report(samples: &[Sample], ssim_tolerance: f64) -> Vec<String> {
-    let mut out = Vec::new();
+/// Every pair of neighbouring configurations of one object (next g at the
+/// same p, next p at the same g) in `samples`, with the parameter that
+/// changed (`"g"` or `"p"`).
+fn neighbour_pairs(samples: &[Sample]) -> Vec<(&'static str, &Sample, &Sample)> {
     let find = |o: &str, g: u32, p: u32| {
         samples
             .iter()
@@ -693,6 +723,7 @@ pub fn monotonicity_report(samples: &[Sample], ssim_tolerance: f64) -> Vec<Strin
     gs.dedup();
     ps.sort_unstable();
     ps.dedup();
+    let mut out = Vec::new();
     for a in samples {
         let next_g = gs
             .iter()
@@ -703,21 +734,108 @@ pub fn monotonicity_report(samples: &[Sample], ssim_tolerance: f64) -> Vec<Strin
             .find(|&&p| p > a.p)
             .and_then(|&p| find(&a.object, a.g, p));
         for (what, b) in [("g", next_g), ("p", next_p)] {
-            let Some(b) = b else { continue };
-            let step = format!("{} ({}, {}) → ({}, {})", a.object, a.g, a.p, b.g, b.p);
-            if b.gpu_bytes <= a.gpu_bytes || b.size_bytes <= a.size_bytes {
-                out.push(format!(
-                    "{step}: size does not grow with {what} (GPU {} → {}, file {} → {})",
-                    a.gpu_bytes, b.gpu_bytes, a.size_bytes, b.size_bytes
-                ));
-            }
-            if b.ssim < a.ssim - ssim_tolerance {
-                out.push(format!(
-                    "{step}: SSIM falls with {what} ({:.4} → {:.4})",
-                    a.ssim, b.ssim
-                ));
+            if let Some(b) = b {
+                out.push((what, a, b));
             }
         }
     }
     out
+}
+
+/// Where a sweep's samples break "size grows and quality rises with g and
+/// with p": one line per pair of neighbouring configurations (next g at
+/// the same p, next p at the same g) whose size does not grow or whose SSIM
+/// falls by more than `ssim_tolerance`.
+pub fn monotonicity_report(samples: &[Sample], ssim_tolerance: f64) -> Vec<String> {
+    let mut out = Vec::new();
+    for (what, a, b) in neighbour_pairs(samples) {
+        let step = format!("{} ({}, {}) → ({}, {})", a.object, a.g, a.p, b.g, b.p);
+        if b.gpu_bytes <= a.gpu_bytes || b.size_bytes <= a.size_bytes {
+            out.push(format!(
+                "{step}: size does not grow with {what} (GPU {} → {}, file {} → {})",
+                a.gpu_bytes, b.gpu_bytes, a.size_bytes, b.size_bytes
+            ));
+        }
+        if b.ssim < a.ssim - ssim_tolerance {
+            out.push(format!(
+                "{step}: SSIM falls with {what} ({:.4} → {:.4})",
+                a.ssim, b.ssim
+            ));
+        }
+    }
+    out
+}
+
+/// Counts over every neighbouring pair of [`monotonicity_report`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MonotonicitySummary {
+    /// Neighbouring configuration pairs.
+    pub pairs: usize,
+    /// Pairs where both file and GPU bytes grow.
+    pub size_grows: usize,
+    /// Pairs where SSIM does not fall.
+    pub ssim_rises: usize,
+    /// The largest SSIM drop (0 if none).
+    pub max_ssim_drop: f64,
+    /// Where that drop is, `object (g, p) → (g, p)`.
+    pub max_drop_at: Option<String>,
+}
+
+/// Summarises how monotone the samples are (see [`monotonicity_report`]).
+pub fn monotonicity_summary(samples: &[Sample]) -> MonotonicitySummary {
+    let mut m = MonotonicitySummary::default();
+    for (_, a, b) in neighbour_pairs(samples) {
+        m.pairs += 1;
+        if b.gpu_bytes > a.gpu_bytes && b.size_bytes > a.size_bytes {
+            m.size_grows += 1;
+        }
+        let drop = a.ssim - b.ssim;
+        if drop <= 0.0 {
+            m.ssim_rises += 1;
+        } else if drop > m.max_ssim_drop {
+            m.max_ssim_drop = drop;
+            m.max_drop_at = Some(format!(
+                "{} ({}, {}) → ({}, {})",
+                a.object, a.g, a.p, b.g, b.p
+            ));
+        }
+    }
+    m
+}
+
+/// A markdown table of the samples at `configs`, one row per object (in
+/// sample order) and configuration: quads, file and GPU MB (10⁶ bytes),
+/// SSIM, PSNR, LPIPS. Configurations an object has no sample for are left
+/// out.
+pub fn markdown_table(samples: &[Sample], configs: &[(u32, u32)]) -> String {
+    let mut objects: Vec<&str> = Vec::new();
+    for s in samples {
+        if !objects.contains(&s.object.as_str()) {
+            objects.push(&s.object);
+        }
+    }
+    let mut t = String::from(
+        "| object | g | p | quads | file MB | GPU MB | SSIM | PSNR dB | LPIPS |\n\
+         |---|--:|--:|--:|--:|--:|--:|--:|--:|\n",
+    );
+    for o in objects {
+        for &(g, p) in configs {
+            let Some(s) = samples
+                .iter()
+                .find(|s| s.object == o && s.g == g && s.p == p)
+            else {
+                continue;
+            };
+            t.push_str(&format!(
+                "| {o} | {g} | {p} | {} | {:.2} | {:.2} | {:.4} | {:.2} | {} |\n",
+                s.quads,
+                s.size_bytes as f64 / 1e6,
+                s.gpu_bytes as f64 / 1e6,
+                s.ssim,
+                s.psnr,
+                s.lpips.map_or("–".to_string(), |l| format!("{l:.4}"))
+            ));
+        }
+    }
+    t
 }
