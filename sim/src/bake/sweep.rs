@@ -29,6 +29,11 @@ use crate::metrics::{Lpips, Metrics};
 /// key like [`BAKER_VERSION`].
 pub const MEASURE_VERSION: u32 = 1;
 
+/// Version of the carving's treatment of other objects' pixels (unknown,
+/// not background); part of the cache key of objects whose views show
+/// other objects only.
+pub const OCCLUDERS_UNKNOWN: u32 = 1;
+
 /// The header of the samples CSV.
 pub const CSV_HEADER: &str = "object,g,p,size_bytes,gpu_bytes,quads,ssim,psnr,lpips";
 
@@ -283,6 +288,16 @@ impl ObjectViews {
         })
     }
 
+    /// Whether some training view shows another object (an instance-mask
+    /// value other than 0 and the object's label): such pixels are unknown
+    /// to the carving (see [`super::carve`]) since [`OCCLUDERS_UNKNOWN`].
+    pub fn has_other_objects(&self) -> bool {
+        self.train.iter().any(|(_, _, mask)| {
+            mask.as_ref()
+                .is_some_and(|(m, label)| m.as_raw().iter().any(|&v| v != 0 && v != *label))
+        })
+    }
+
     /// The training views as the baker takes them.
     pub fn bake_views(&self) -> Vec<BakeView<'_>> {
         self.train
@@ -459,6 +474,12 @@ impl Cache {
         h.write(&[u8::from(with_lpips)]);
         h.write(&(obj.train.len() as u64).to_le_bytes());
         h.write(&(obj.test.len() as u64).to_le_bytes());
+        // Only captures with other objects' pixels bake differently since
+        // they count as unknown: their keys change, single-object keys (and
+        // the samples cached under them) stay.
+        if obj.has_other_objects() {
+            h.write(&OCCLUDERS_UNKNOWN.to_le_bytes());
+        }
         format!(
             "{}-g{}-p{}-{:016x}",
             obj.name,
