@@ -235,12 +235,14 @@ fn monotonicity_summary_counts_pairs_and_the_largest_drop() {
         s(32, 9, 250, 0.7195),
     ];
     let m = sweep::monotonicity_summary(&samples);
-    // (16,5)→(32,5), (16,5)→(16,9), (16,9)→(32,9), (32,5)→(32,9).
-    assert_eq!(m.pairs, 4);
-    assert_eq!(m.size_grows, 3);
-    assert_eq!(m.ssim_rises, 2);
-    assert!((m.max_ssim_drop - 0.01).abs() < 1e-12, "{m:?}");
-    assert_eq!(m.max_drop_at.as_deref(), Some("x (16, 5) → (32, 5)"));
+    // Along g: (16,5)→(32,5) falls by 0.01, (16,9)→(32,9) falls by 0.0005.
+    assert_eq!((m.g.pairs, m.g.size_grows), (2, 2));
+    assert_eq!((m.g.ssim_falls, m.g.ssim_falls_over_1e3), (2, 1));
+    assert!((m.g.max_ssim_drop - 0.01).abs() < 1e-12, "{m:?}");
+    assert_eq!(m.g.max_drop_at.as_deref(), Some("x (16, 5) → (32, 5)"));
+    // Along p: (16,5)→(16,9) rises; (32,5)→(32,9) rises but shrinks.
+    assert_eq!((m.p.pairs, m.p.size_grows, m.p.ssim_falls), (2, 1, 0));
+    assert_eq!(m.p.max_drop_at, None);
 }
 
 #[test]

@@ -779,46 +779,65 @@ pub fn monotonicity_report(samples: &[Sample], ssim_tolerance: f64) -> Vec<Strin
         }
         if b.ssim < a.ssim - ssim_tolerance {
             out.push(format!(
-                "{step}: SSIM falls with {what} ({:.4} → {:.4})",
-                a.ssim, b.ssim
+                "{step}: SSIM falls with {what} ({:.6} → {:.6}, by {:.6})",
+                a.ssim,
+                b.ssim,
+                a.ssim - b.ssim
             ));
         }
     }
     out
 }
 
-/// Counts over every neighbouring pair of [`monotonicity_report`].
+/// Counts over the neighbouring pairs of [`monotonicity_report`] along
+/// one parameter (g or p).
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct MonotonicitySummary {
+pub struct StepSummary {
     /// Neighbouring configuration pairs.
     pub pairs: usize,
     /// Pairs where both file and GPU bytes grow.
     pub size_grows: usize,
-    /// Pairs where SSIM does not fall.
-    pub ssim_rises: usize,
+    /// Pairs where SSIM falls.
+    pub ssim_falls: usize,
+    /// Pairs where SSIM falls by more than 0.001.
+    pub ssim_falls_over_1e3: usize,
     /// The largest SSIM drop (0 if none).
     pub max_ssim_drop: f64,
     /// Where that drop is, `object (g, p) → (g, p)`.
     pub max_drop_at: Option<String>,
 }
 
+/// [`StepSummary`] along g (same p) and along p (same g).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MonotonicitySummary {
+    /// Next g at the same p.
+    pub g: StepSummary,
+    /// Next p at the same g.
+    pub p: StepSummary,
+}
+
 /// Summarises how monotone the samples are (see [`monotonicity_report`]).
 pub fn monotonicity_summary(samples: &[Sample]) -> MonotonicitySummary {
     let mut m = MonotonicitySummary::default();
-    for (_, a, b) in neighbour_pairs(samples) {
-        m.pairs += 1;
+    for (what, a, b) in neighbour_pairs(samples) {
+        let s = if what == "g" { &mut m.g } else { &mut m.p };
+        s.pairs += 1;
         if b.gpu_bytes > a.gpu_bytes && b.size_bytes > a.size_bytes {
-            m.size_grows += 1;
+            s.size_grows += 1;
         }
         let drop = a.ssim - b.ssim;
-        if drop <= 0.0 {
-            m.ssim_rises += 1;
-        } else if drop > m.max_ssim_drop {
-            m.max_ssim_drop = drop;
-            m.max_drop_at = Some(format!(
-                "{} ({}, {}) → ({}, {})",
-                a.object, a.g, a.p, b.g, b.p
-            ));
+        if drop > 0.0 {
+            s.ssim_falls += 1;
+            if drop > 1e-3 {
+                s.ssim_falls_over_1e3 += 1;
+            }
+            if drop > s.max_ssim_drop {
+                s.max_ssim_drop = drop;
+                s.max_drop_at = Some(format!(
+                    "{} ({}, {}) → ({}, {})",
+                    a.object, a.g, a.p, b.g, b.p
+                ));
+            }
         }
     }
     m

@@ -434,16 +434,19 @@ fn run_sweep(args: &Args) -> anyhow::Result<()> {
         println!("  {b}");
     }
     let m = sweep::monotonicity_summary(&report.samples);
-    println!(
-        "of {} neighbouring pairs: size grows in {}, SSIM rises in {}; largest SSIM drop {:.6}{}",
-        m.pairs,
-        m.size_grows,
-        m.ssim_rises,
-        m.max_ssim_drop,
-        m.max_drop_at
-            .as_ref()
-            .map_or(String::new(), |s| format!(" ({s})"))
-    );
+    for (what, st) in [("g", &m.g), ("p", &m.p)] {
+        println!(
+            "next {what}: {} pairs, size grows in {}, SSIM falls in {} ({} by more than 0.001), largest drop {:.6}{}",
+            st.pairs,
+            st.size_grows,
+            st.ssim_falls,
+            st.ssim_falls_over_1e3,
+            st.max_ssim_drop,
+            st.max_drop_at
+                .as_ref()
+                .map_or(String::new(), |s| format!(" at {s}"))
+        );
+    }
     println!(
         "{} samples ({} baked, {} reused from {}) in {:.1} s → {}",
         report.samples.len(),
