@@ -18,8 +18,8 @@
 //! values other than 0 and the object's label) are **unknown**, not
 //! background: the object may continue behind them, so they never carve.
 //! A point projecting onto them counts as in frame but neither confirms
-//! nor refutes matter; a footprint touching them is never
-//! [`Verdict::Background`]. Views without such pixels (every view of a
+//! nor refutes matter; a voxel or quad footprint touching them is never
+//! judged background. Views without such pixels (every view of a
 //! single-object capture) take exactly the code path they took before.
 
 use glam::{Mat4, Vec3};
