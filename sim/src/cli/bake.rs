@@ -243,8 +243,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         s.occupied_voxels,
     );
     println!(
-        "texels: {} seen, {} unseen (filled), {} empty",
-        s.seen_texels, s.unseen_texels, s.empty_texels
+        "texels: {} seen (from {:.2} views each on average), {} unseen (filled), {} empty",
+        s.seen_texels,
+        s.view_samples as f64 / s.seen_texels.max(1) as f64,
+        s.unseen_texels,
+        s.empty_texels
     );
     println!(
         "size: {file_bytes} file bytes ({:.1} MiB), {gpu_bytes} GPU bytes ({:.1} MiB)",
