@@ -22,6 +22,7 @@
 
 pub mod atlas;
 pub mod carve;
+pub mod compare;
 pub mod mlp_fit;
 pub mod quads;
 pub mod sweep;
@@ -244,6 +245,9 @@ pub struct BakeStats {
     pub unseen_texels: u64,
     /// Empty texels (outside the visual hull), stored as feat0.R = 0.
     pub empty_texels: u64,
+    /// (texel, view) pairs that gave the seen texels colour: each seen
+    /// texel averages `view_samples / seen_texels` views on average.
+    pub view_samples: u64,
     /// Stage timings.
     pub times: StageTimes,
 }
@@ -406,6 +410,13 @@ pub fn bake(views: &[BakeView<'_>], params: &BakeParams) -> Result<BakedObject, 
         .flat_map(|(c, _)| c.iter().copied())
         .collect();
     let seen: u64 = colours.seen.iter().map(|&n| u64::from(n)).sum();
+    let view_samples: u64 = colours
+        .view_samples
+        .iter()
+        .zip(&keep)
+        .filter(|(_, &k)| k)
+        .map(|(&n, _)| u64::from(n))
+        .sum();
     let occupied_texels = occupancy.iter().filter(|&&o| o).count() as u64;
     let layout = atlas::AtlasLayout::new(quads.len(), params.patch);
     let (mlp, code) = mlp_fit::design();
@@ -427,6 +438,7 @@ pub fn bake(views: &[BakeView<'_>], params: &BakeParams) -> Result<BakedObject, 
             seen_texels: counts.0,
             unseen_texels: counts.1,
             empty_texels: counts.2,
+            view_samples,
             times: StageTimes {
                 carve_s: (t1 - t0).as_secs_f64(),
                 quads_s: (t2 - t1).as_secs_f64(),

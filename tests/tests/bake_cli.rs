@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use nerflex_sim::asset::Asset;
 use nerflex_sim::bake::carve::VoxelTest;
 use nerflex_sim::bake::{sweep, Geometry};
-use nerflex_sim::cli::bake::{run, Args};
+use nerflex_sim::cli::bake::{run, Args, Reports};
 use nerflex_sim::procedural::{
     arrange, make_capture, CaptureSpec, Layout, ObjectKind, RenderOptions,
 };
@@ -57,6 +57,10 @@ fn args(capture: &Path) -> Args {
         frontal_power: 1.0,
         voxel_test: VoxelTest::Centre,
         geometry: Geometry::Shell,
+        reports: Box::new(Reports {
+            table_configs: vec![(8, 3), (12, 5)],
+            ..Reports::default()
+        }),
         lpips_weights: Some(PathBuf::from("/nonexistent/lpips.safetensors")),
     }
 }
@@ -94,8 +98,12 @@ fn sweep_writes_csv_and_plots_then_reuses_the_cache() {
     a.csv = tmp.path().join("out/samples.csv");
     a.cache = Some(tmp.path().join("cache"));
     a.plots = Some(tmp.path().join("plots"));
+    a.reports.table = Some(tmp.path().join("out/table.md"));
     a.lpips_weights = None;
     run(a).unwrap();
+    let table = std::fs::read_to_string(tmp.path().join("out/table.md")).unwrap();
+    assert_eq!(table.lines().count(), 2 + 4, "{table}");
+    assert!(table.contains("| pawn | 12 | 5 |"), "{table}");
     let rows = sweep::read_csv(&tmp.path().join("out/samples.csv")).unwrap();
     assert_eq!(rows.len(), 8);
     assert_eq!(rows[0].object, "pawn");
@@ -103,6 +111,38 @@ fn sweep_writes_csv_and_plots_then_reuses_the_cache() {
     assert!(tmp.path().join("plots/ball.png").is_file());
     let cached = std::fs::read_dir(tmp.path().join("cache")).unwrap().count();
     assert_eq!(cached, 8);
+}
+
+#[test]
+fn compare_draws_truth_and_each_bake_side_by_side() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cap = capture(tmp.path());
+    let mut a = args(&cap);
+    a.object = vec!["ball".into()];
+    a.grid = vec![];
+    a.patch = vec![];
+    a.configs = vec![(12, 5), (4, 3)];
+    a.reports.compare = Some(tmp.path().join("pics/cmp.png"));
+    a.reports.view = 1;
+    a.renders_size = Some(48);
+    a.lpips_weights = None;
+    run(a).unwrap();
+    let pic = image::open(tmp.path().join("pics/cmp.png")).unwrap();
+    // Three tiles no wider than 48 px each, side by side, with captions.
+    assert!(
+        pic.width() > 3 * 20 && pic.width() <= 4 * 8 + 3 * 48,
+        "{}",
+        pic.width()
+    );
+    assert!(pic.height() > 48 / 2, "{}", pic.height());
+    // A view that does not exist.
+    let mut a = args(&cap);
+    a.object = vec!["ball".into()];
+    a.configs = vec![(12, 5)];
+    a.reports.compare = Some(tmp.path().join("pics/cmp2.png"));
+    a.reports.view = 7;
+    let e = format!("{:#}", run(a).unwrap_err());
+    assert!(e.contains("--view 7"), "{e}");
 }
 
 #[test]

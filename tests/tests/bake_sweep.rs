@@ -214,3 +214,63 @@ fn monotonicity_report_names_the_breaks() {
     );
     assert!(sweep::monotonicity_report(&samples[..2], 0.0).is_empty());
 }
+
+#[test]
+fn monotonicity_summary_counts_pairs_and_the_largest_drop() {
+    let s = |g, p, gpu, ssim| Sample {
+        object: "x".into(),
+        g,
+        p,
+        size_bytes: gpu,
+        gpu_bytes: gpu,
+        quads: 1,
+        ssim,
+        psnr: 0.0,
+        lpips: None,
+    };
+    let samples = vec![
+        s(16, 5, 100, 0.70),
+        s(16, 9, 200, 0.72),
+        s(32, 5, 300, 0.69),
+        s(32, 9, 250, 0.7195),
+    ];
+    let m = sweep::monotonicity_summary(&samples);
+    // Along g: (16,5)→(32,5) falls by 0.01, (16,9)→(32,9) falls by 0.0005.
+    assert_eq!((m.g.pairs, m.g.size_grows), (2, 2));
+    assert_eq!((m.g.ssim_falls, m.g.ssim_falls_over_1e3), (2, 1));
+    assert!((m.g.max_ssim_drop - 0.01).abs() < 1e-12, "{m:?}");
+    assert_eq!(m.g.max_drop_at.as_deref(), Some("x (16, 5) → (32, 5)"));
+    // Along p: (16,5)→(16,9) rises; (32,5)→(32,9) rises but shrinks.
+    assert_eq!((m.p.pairs, m.p.size_grows, m.p.ssim_falls), (2, 1, 0));
+    assert_eq!(m.p.max_drop_at, None);
+}
+
+#[test]
+fn markdown_table_lists_the_chosen_configurations() {
+    let s = |o: &str, g, p, ssim| Sample {
+        object: o.into(),
+        g,
+        p,
+        size_bytes: 2_500_000,
+        gpu_bytes: 1_000_000,
+        quads: 42,
+        ssim,
+        psnr: 20.0,
+        lpips: Some(0.25),
+    };
+    let samples = vec![
+        s("a", 16, 5, 0.7),
+        s("a", 128, 17, 0.8),
+        s("b", 16, 5, 0.6),
+        s("a", 32, 5, 0.75),
+    ];
+    let t = sweep::markdown_table(&samples, &[(16, 5), (128, 17)]);
+    let lines: Vec<&str> = t.lines().collect();
+    assert_eq!(lines.len(), 2 + 3, "{t}");
+    assert!(lines[0].starts_with("| object | g | p | quads"), "{t}");
+    assert_eq!(
+        lines[3],
+        "| a | 128 | 17 | 42 | 2.50 | 1.00 | 0.8000 | 20.00 | 0.2500 |"
+    );
+    assert!(lines[4].starts_with("| b | 16 | 5 |"), "{t}");
+}

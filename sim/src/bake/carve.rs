@@ -13,6 +13,14 @@
 //!
 //! Shape finer than a voxel comes from the texels: [`texel_occupancy`]
 //! empties the texels of thin voxels that lie outside the hull.
+//!
+//! In a multi-object capture, pixels of *other* objects (instance-mask
+//! values other than 0 and the object's label) are **unknown**, not
+//! background: the object may continue behind them, so they never carve.
+//! A point projecting onto them counts as in frame but neither confirms
+//! nor refutes matter; a voxel or quad footprint touching them is never
+//! judged background. Views without such pixels (every view of a
+//! single-object capture) take exactly the code path they took before.
 
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;
@@ -48,6 +56,17 @@ struct SummedArea {
     sums: Vec<u32>,
     /// The foreground indicator itself, row-major.
     fg: Vec<bool>,
+    /// Where the view shows another object (unknown, never carves), if it
+    /// shows any: its indicator and the prefix sums of "foreground or
+    /// unknown" (= not background).
+    unknown: Option<Unknown>,
+}
+
+struct Unknown {
+    /// Another object's pixel, row-major.
+    px: Vec<bool>,
+    /// (width + 1) × (height + 1) prefix sums of "not background".
+    sums: Vec<u32>,
 }
 
 impl SummedArea {
@@ -67,20 +86,72 @@ impl SummedArea {
                 sums[i] = sums[i - stride] + row;
             }
         }
+        let unknown = Self::unknown_pixels(view, &fg);
         Self {
             width: w,
             height: h,
             sums,
             fg,
+            unknown,
         }
+    }
+
+    /// The other objects' pixels of an instance-masked view (`None` when
+    /// there are none).
+    fn unknown_pixels(view: &BakeView<'_>, fg: &[bool]) -> Option<Unknown> {
+        let super::Silhouette::Instance { mask, label } = view.silhouette else {
+            return None;
+        };
+        let px: Vec<bool> = mask
+            .as_raw()
+            .iter()
+            .zip(fg)
+            .map(|(&m, &f)| !f && m != 0 && m != label)
+            .collect();
+        if !px.contains(&true) {
+            return None;
+        }
+        let (w, h) = (mask.width() as usize, mask.height() as usize);
+        let stride = w + 1;
+        let mut sums = vec![0u32; stride * (h + 1)];
+        for y in 0..h {
+            let mut row = 0u32;
+            for x in 0..w {
+                row += u32::from(fg[y * w + x] || px[y * w + x]);
+                let i = (y + 1) * stride + x + 1;
+                sums[i] = sums[i - stride] + row;
+            }
+        }
+        Some(Unknown { px, sums })
     }
 
     /// Foreground pixels in [x0, x1) × [y0, y1) (already clipped).
     #[inline]
     fn count(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> u32 {
-        let s = self.width as usize + 1;
-        let at = |x: u32, y: u32| self.sums[y as usize * s + x as usize];
+        Self::rect(&self.sums, self.width, x0, y0, x1, y1)
+    }
+
+    /// Pixels that are not background (foreground or another object's)
+    /// in [x0, x1) × [y0, y1).
+    #[inline]
+    fn count_not_background(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> u32 {
+        match &self.unknown {
+            None => self.count(x0, y0, x1, y1),
+            Some(u) => Self::rect(&u.sums, self.width, x0, y0, x1, y1),
+        }
+    }
+
+    #[inline]
+    fn rect(sums: &[u32], width: u32, x0: u32, y0: u32, x1: u32, y1: u32) -> u32 {
+        let s = width as usize + 1;
+        let at = |x: u32, y: u32| sums[y as usize * s + x as usize];
         at(x1, y1) + at(x0, y0) - at(x0, y1) - at(x1, y0)
+    }
+
+    /// Whether pixel `i` (row-major) shows another object.
+    #[inline]
+    fn is_unknown(&self, i: usize) -> bool {
+        self.unknown.as_ref().is_some_and(|u| u.px[i])
     }
 }
 
@@ -136,7 +207,9 @@ impl Silhouettes {
             if !(px >= 0.0 && py >= 0.0 && px < p.width && py < p.height) {
                 continue;
             }
-            if !t.fg[py as usize * t.width as usize + px as usize] {
+            let i = py as usize * t.width as usize + px as usize;
+            // Another object's pixel: in frame, but says nothing.
+            if !t.fg[i] && !t.is_unknown(i) {
                 return false;
             }
             seen += 1;
@@ -163,7 +236,9 @@ impl Silhouettes {
             if !(px >= 0.0 && py >= 0.0 && px < p.width && py < p.height) {
                 continue;
             }
-            if !t.fg[py as usize * t.width as usize + px as usize] {
+            let i = py as usize * t.width as usize + px as usize;
+            // Another object's pixel: in frame, but says nothing.
+            if !t.fg[i] && !t.is_unknown(i) {
                 return false;
             }
             seen += 1;
@@ -352,7 +427,7 @@ fn judge_quad(p: &Proj, t: &SummedArea, q: &Quad) -> QuadVerdict {
         (y1.floor() as u32 + 1).min(t.height),
     );
     let count = t.count(xa, ya, xb, yb);
-    if count == 0 {
+    if count == 0 && t.count_not_background(xa, ya, xb, yb) == 0 {
         QuadVerdict::Background
     } else if count == (xb - xa) * (yb - ya) {
         QuadVerdict::Inside
@@ -562,7 +637,8 @@ fn judge(p: &Proj, table: &SummedArea, centre: Vec3, radius: f32) -> Verdict {
         Verdict::Inside
     } else if count > 0 {
         Verdict::Object
-    } else if clipped {
+    } else if clipped || table.count_not_background(xa, ya, xb, yb) > 0 {
+        // Partly out of frame, or hidden behind another object: unknown.
         Verdict::Unseen
     } else {
         Verdict::Background
@@ -616,4 +692,126 @@ pub fn texel_occupancy(sil: &Silhouettes, grid: &Grid, quads: &[Quad], p: u32) -
             }
         });
     occ
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bake::{BakeView, Silhouette};
+    use crate::camera::{Camera, Intrinsics};
+    use image::{GrayImage, Luma, Rgba, RgbaImage};
+
+    const R: f32 = 0.5;
+
+    /// Views of a sphere of radius `R` at the origin: image (alpha =
+    /// sphere), instance mask (1 = sphere). In the views listed in
+    /// `hidden`, another object (label 2) covers the sphere's pixels whose
+    /// surface point is below z = −0.15, as an object in front would.
+    fn sphere_views(hidden: &[usize]) -> Vec<(Camera, RgbaImage, GrayImage)> {
+        let k = Intrinsics::from_fov_x(40f32.to_radians(), 64, 64);
+        (0..12)
+            .map(|i| {
+                let el = [-30.0, 0.0, 30.0][i % 3];
+                let cam = Camera::orbit(i as f32 * 30.0, el, 3.0, Vec3::ZERO, k);
+                let mut img = RgbaImage::new(64, 64);
+                let mut mask = GrayImage::new(64, 64);
+                for (x, y, px) in img.enumerate_pixels_mut() {
+                    let (o, d) = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
+                    let b = o.dot(d);
+                    let disc = b * b - (o.length_squared() - R * R);
+                    if disc < 0.0 {
+                        continue;
+                    }
+                    let hit = o + (-b - disc.sqrt()) * d;
+                    *px = Rgba([200, 100, 50, 255]);
+                    let label = if hidden.contains(&i) && hit.z < -0.15 {
+                        2
+                    } else {
+                        1
+                    };
+                    mask.put_pixel(x, y, Luma([label]));
+                }
+                (cam, img, mask)
+            })
+            .collect()
+    }
+
+    fn silhouettes(views: &[(Camera, RgbaImage, GrayImage)], instance: bool) -> Silhouettes {
+        let bv: Vec<BakeView<'_>> = views
+            .iter()
+            .map(|(camera, image, mask)| BakeView {
+                camera: *camera,
+                image,
+                silhouette: if instance {
+                    Silhouette::Instance { mask, label: 1 }
+                } else {
+                    Silhouette::Alpha
+                },
+            })
+            .collect();
+        Silhouettes::new(&bv)
+    }
+
+    #[test]
+    fn a_part_hidden_behind_another_object_survives_carving() {
+        let views = sphere_views(&[0, 1, 2, 3]);
+        let sil = silhouettes(&views, true);
+        assert!(sil.tables[0].unknown.is_some());
+        assert!(sil.tables[5].unknown.is_none());
+        // The sphere's lower part, hidden in views 0–3, is still inside…
+        let low = Vec3::new(0.0, 0.0, -0.4);
+        assert!(sil.inside(low));
+        // …and space outside the sphere is still carved by the other views.
+        assert!(!sil.inside(Vec3::new(0.0, 0.0, -0.7)));
+        assert!(!sil.inside(Vec3::new(0.45, 0.45, -0.4)));
+        // Were other objects' pixels background, the lower part would go.
+        let views_as_bg: Vec<_> = views
+            .iter()
+            .map(|(c, img, m)| {
+                let mut img = img.clone();
+                for (p, l) in img.pixels_mut().zip(m.pixels()) {
+                    if l.0[0] == 2 {
+                        p.0 = [0; 4];
+                    }
+                }
+                (*c, img, m.clone())
+            })
+            .collect();
+        assert!(!silhouettes(&views_as_bg, false).inside(low));
+
+        // The voxel grid keeps it too: a voxel at the bottom of the sphere.
+        let cube = Aabb {
+            min: Vec3::splat(-0.6),
+            max: Vec3::splat(0.6),
+        };
+        let grid = shell(&sil, &cube, 12);
+        let (i, k) = (6, 1); // x, y ≈ 0, z ≈ −0.45
+        assert_ne!(grid.class(i, i, k), VoxelClass::Empty);
+        let bottom_kept = |g: &ShellGrid| (0..3).any(|k| g.class(6, 6, k) != VoxelClass::Empty);
+        assert!(bottom_kept(&grid));
+        let as_bg = shell(&silhouettes(&views_as_bg, false), &cube, 12);
+        assert!(
+            !bottom_kept(&as_bg),
+            "the occluded bottom was expected to go"
+        );
+        // And every voxel outside the sphere's bounding box is carved.
+        assert_eq!(grid.class(0, 0, 0), VoxelClass::Empty);
+    }
+
+    #[test]
+    fn instance_masks_without_other_objects_carve_exactly_as_alpha() {
+        let views = sphere_views(&[]);
+        let (a, b) = (silhouettes(&views, false), silhouettes(&views, true));
+        assert!(b.tables.iter().all(|t| t.unknown.is_none()));
+        let cube = Aabb {
+            min: Vec3::splat(-0.6),
+            max: Vec3::splat(0.6),
+        };
+        assert_eq!(shell(&a, &cube, 16).class, shell(&b, &cube, 16).class);
+        let (ga, gb) = (
+            carve(&a, &cube, 16, VoxelTest::Centre),
+            carve(&b, &cube, 16, VoxelTest::Centre),
+        );
+        assert_eq!(ga.occ, gb.occ);
+    }
 }

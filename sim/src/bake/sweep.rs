@@ -29,6 +29,11 @@ use crate::metrics::{Lpips, Metrics};
 /// key like [`BAKER_VERSION`].
 pub const MEASURE_VERSION: u32 = 1;
 
+/// Version of the carving's treatment of other objects' pixels (unknown,
+/// not background); part of the cache key of objects whose views show
+/// other objects only.
+pub const OCCLUDERS_UNKNOWN: u32 = 1;
+
 /// The header of the samples CSV.
 pub const CSV_HEADER: &str = "object,g,p,size_bytes,gpu_bytes,quads,ssim,psnr,lpips";
 
@@ -283,6 +288,16 @@ impl ObjectViews {
         })
     }
 
+    /// Whether some training view shows another object (an instance-mask
+    /// value other than 0 and the object's label): such pixels are unknown
+    /// to the carving (see [`super::carve`]) since [`OCCLUDERS_UNKNOWN`].
+    pub fn has_other_objects(&self) -> bool {
+        self.train.iter().any(|(_, _, mask)| {
+            mask.as_ref()
+                .is_some_and(|(m, label)| m.as_raw().iter().any(|&v| v != 0 && v != *label))
+        })
+    }
+
     /// The training views as the baker takes them.
     pub fn bake_views(&self) -> Vec<BakeView<'_>> {
         self.train
@@ -334,31 +349,63 @@ pub fn measure(
     lpips: Option<&Lpips>,
     keep_renders: bool,
 ) -> anyhow::Result<(Quality, Vec<RgbaImage>)> {
+    let m = measure_views(obj, test, render, lpips, keep_renders)?;
+    Ok((m.mean, m.renders))
+}
+
+/// What [`measure_views`] found: the means, each view's scores and, if
+/// asked, the renders.
+#[derive(Debug, Clone)]
+pub struct Measured {
+    /// Means over the test views (as in the samples CSV).
+    pub mean: Quality,
+    /// Each test view's scores, in order (PSNR capped at 100 dB).
+    pub views: Vec<Quality>,
+    /// The renders, if asked for.
+    pub renders: Vec<RgbaImage>,
+}
+
+/// [`measure`] with each view's scores kept.
+pub fn measure_views(
+    obj: &Asset,
+    test: &[(Camera, RgbaImage)],
+    render: &RenderFn<'_>,
+    lpips: Option<&Lpips>,
+    keep_renders: bool,
+) -> anyhow::Result<Measured> {
     if test.is_empty() {
         bail!("no test views to measure against");
     }
     let mut sums = (0.0, 0.0, 0.0);
     let mut renders = Vec::new();
+    let mut views = Vec::with_capacity(test.len());
     for (i, (cam, gt)) in test.iter().enumerate() {
         let img = render(obj, cam).with_context(|| format!("rendering test view {i}"))?;
         let s = Metrics::compare(&img, gt, lpips)
             .with_context(|| format!("measuring test view {i}"))?;
+        let psnr = s.psnr.min(100.0); // identical images: cap inf at 100 dB
         sums.0 += s.ssim;
-        sums.1 += s.psnr.min(100.0); // identical images: cap inf at 100 dB
+        sums.1 += psnr;
         sums.2 += s.lpips.unwrap_or(0.0);
+        views.push(Quality {
+            ssim: s.ssim,
+            psnr,
+            lpips: s.lpips,
+        });
         if keep_renders {
             renders.push(img);
         }
     }
     let n = test.len() as f64;
-    Ok((
-        Quality {
+    Ok(Measured {
+        mean: Quality {
             ssim: sums.0 / n,
             psnr: sums.1 / n,
             lpips: lpips.map(|_| sums.2 / n),
         },
+        views,
         renders,
-    ))
+    })
 }
 
 /// Bakes, encodes and measures one configuration.
@@ -427,6 +474,12 @@ impl Cache {
         h.write(&[u8::from(with_lpips)]);
         h.write(&(obj.train.len() as u64).to_le_bytes());
         h.write(&(obj.test.len() as u64).to_le_bytes());
+        // Only captures with other objects' pixels bake differently since
+        // they count as unknown: their keys change, single-object keys (and
+        // the samples cached under them) stay.
+        if obj.has_other_objects() {
+            h.write(&OCCLUDERS_UNKNOWN.to_le_bytes());
+        }
         format!(
             "{}-g{}-p{}-{:016x}",
             obj.name,
@@ -676,12 +729,10 @@ pub fn plot_objects(samples: &[Sample], dir: &Path) -> anyhow::Result<Vec<PathBu
     Ok(written)
 }
 
-/// Where a sweep's samples break "size grows and quality rises with g and
-/// with p": one line per pair of neighbouring configurations (next g at
-/// the same p, next p at the same g) whose size does not grow or whose SSIM
-/// falls by more than `ssim_tolerance`.
-pub fn monotonicity_report(samples: &[Sample], ssim_tolerance: f64) -> Vec<String> {
-    let mut out = Vec::new();
+/// Every pair of neighbouring configurations of one object (next g at the
+/// same p, next p at the same g) in `samples`, with the parameter that
+/// changed (`"g"` or `"p"`).
+fn neighbour_pairs(samples: &[Sample]) -> Vec<(&'static str, &Sample, &Sample)> {
     let find = |o: &str, g: u32, p: u32| {
         samples
             .iter()
@@ -693,6 +744,7 @@ pub fn monotonicity_report(samples: &[Sample], ssim_tolerance: f64) -> Vec<Strin
     gs.dedup();
     ps.sort_unstable();
     ps.dedup();
+    let mut out = Vec::new();
     for a in samples {
         let next_g = gs
             .iter()
@@ -703,21 +755,127 @@ pub fn monotonicity_report(samples: &[Sample], ssim_tolerance: f64) -> Vec<Strin
             .find(|&&p| p > a.p)
             .and_then(|&p| find(&a.object, a.g, p));
         for (what, b) in [("g", next_g), ("p", next_p)] {
-            let Some(b) = b else { continue };
-            let step = format!("{} ({}, {}) → ({}, {})", a.object, a.g, a.p, b.g, b.p);
-            if b.gpu_bytes <= a.gpu_bytes || b.size_bytes <= a.size_bytes {
-                out.push(format!(
-                    "{step}: size does not grow with {what} (GPU {} → {}, file {} → {})",
-                    a.gpu_bytes, b.gpu_bytes, a.size_bytes, b.size_bytes
-                ));
-            }
-            if b.ssim < a.ssim - ssim_tolerance {
-                out.push(format!(
-                    "{step}: SSIM falls with {what} ({:.4} → {:.4})",
-                    a.ssim, b.ssim
-                ));
+            if let Some(b) = b {
+                out.push((what, a, b));
             }
         }
     }
     out
+}
+
+/// Where a sweep's samples break "size grows and quality rises with g and
+/// with p": one line per pair of neighbouring configurations (next g at
+/// the same p, next p at the same g) whose size does not grow or whose SSIM
+/// falls by more than `ssim_tolerance`.
+pub fn monotonicity_report(samples: &[Sample], ssim_tolerance: f64) -> Vec<String> {
+    let mut out = Vec::new();
+    for (what, a, b) in neighbour_pairs(samples) {
+        let step = format!("{} ({}, {}) → ({}, {})", a.object, a.g, a.p, b.g, b.p);
+        if b.gpu_bytes <= a.gpu_bytes || b.size_bytes <= a.size_bytes {
+            out.push(format!(
+                "{step}: size does not grow with {what} (GPU {} → {}, file {} → {})",
+                a.gpu_bytes, b.gpu_bytes, a.size_bytes, b.size_bytes
+            ));
+        }
+        if b.ssim < a.ssim - ssim_tolerance {
+            out.push(format!(
+                "{step}: SSIM falls with {what} ({:.6} → {:.6}, by {:.6})",
+                a.ssim,
+                b.ssim,
+                a.ssim - b.ssim
+            ));
+        }
+    }
+    out
+}
+
+/// Counts over the neighbouring pairs of [`monotonicity_report`] along
+/// one parameter (g or p).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct StepSummary {
+    /// Neighbouring configuration pairs.
+    pub pairs: usize,
+    /// Pairs where both file and GPU bytes grow.
+    pub size_grows: usize,
+    /// Pairs where SSIM falls.
+    pub ssim_falls: usize,
+    /// Pairs where SSIM falls by more than 0.001.
+    pub ssim_falls_over_1e3: usize,
+    /// The largest SSIM drop (0 if none).
+    pub max_ssim_drop: f64,
+    /// Where that drop is, `object (g, p) → (g, p)`.
+    pub max_drop_at: Option<String>,
+}
+
+/// [`StepSummary`] along g (same p) and along p (same g).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MonotonicitySummary {
+    /// Next g at the same p.
+    pub g: StepSummary,
+    /// Next p at the same g.
+    pub p: StepSummary,
+}
+
+/// Summarises how monotone the samples are (see [`monotonicity_report`]).
+pub fn monotonicity_summary(samples: &[Sample]) -> MonotonicitySummary {
+    let mut m = MonotonicitySummary::default();
+    for (what, a, b) in neighbour_pairs(samples) {
+        let s = if what == "g" { &mut m.g } else { &mut m.p };
+        s.pairs += 1;
+        if b.gpu_bytes > a.gpu_bytes && b.size_bytes > a.size_bytes {
+            s.size_grows += 1;
+        }
+        let drop = a.ssim - b.ssim;
+        if drop > 0.0 {
+            s.ssim_falls += 1;
+            if drop > 1e-3 {
+                s.ssim_falls_over_1e3 += 1;
+            }
+            if drop > s.max_ssim_drop {
+                s.max_ssim_drop = drop;
+                s.max_drop_at = Some(format!(
+                    "{} ({}, {}) → ({}, {})",
+                    a.object, a.g, a.p, b.g, b.p
+                ));
+            }
+        }
+    }
+    m
+}
+
+/// A markdown table of the samples at `configs`, one row per object (in
+/// sample order) and configuration: quads, file and GPU MB (10⁶ bytes),
+/// SSIM, PSNR, LPIPS. Configurations an object has no sample for are left
+/// out.
+pub fn markdown_table(samples: &[Sample], configs: &[(u32, u32)]) -> String {
+    let mut objects: Vec<&str> = Vec::new();
+    for s in samples {
+        if !objects.contains(&s.object.as_str()) {
+            objects.push(&s.object);
+        }
+    }
+    let mut t = String::from(
+        "| object | g | p | quads | file MB | GPU MB | SSIM | PSNR dB | LPIPS |\n\
+         |---|--:|--:|--:|--:|--:|--:|--:|--:|\n",
+    );
+    for o in objects {
+        for &(g, p) in configs {
+            let Some(s) = samples
+                .iter()
+                .find(|s| s.object == o && s.g == g && s.p == p)
+            else {
+                continue;
+            };
+            t.push_str(&format!(
+                "| {o} | {g} | {p} | {} | {:.2} | {:.2} | {:.4} | {:.2} | {} |\n",
+                s.quads,
+                s.size_bytes as f64 / 1e6,
+                s.gpu_bytes as f64 / 1e6,
+                s.ssim,
+                s.psnr,
+                s.lpips.map_or("–".to_string(), |l| format!("{l:.4}"))
+            ));
+        }
+    }
+    t
 }

@@ -352,6 +352,10 @@ pub struct PatchColours {
     pub rgb: Vec<[u8; 3]>,
     /// Per quad: how many of its occupied texels some view saw.
     pub seen: Vec<u32>,
+    /// Per quad: how many (texel, view) pairs contributed colour (depth
+    /// test passed, coverage > 0): a texel's colour averages
+    /// `view_samples / seen` views on average.
+    pub view_samples: Vec<u32>,
 }
 
 /// Colours every quad's patch from the views (in parallel over quads).
@@ -364,14 +368,16 @@ pub fn colour_quads(
     let p = settings.patch as usize;
     let mut rgb = vec![[0u8; 3]; quads.len() * p * p];
     let mut seen = vec![0u32; quads.len()];
+    let mut view_samples = vec![0u32; quads.len()];
     rgb.par_chunks_mut(p * p)
-        .zip(seen.par_iter_mut())
+        .zip(seen.par_iter_mut().zip(view_samples.par_iter_mut()))
         .enumerate()
         .for_each_init(
             || vec![[0f32; 3]; p * p],
-            |colours, (qi, (out, seen))| {
+            |colours, (qi, (out, (seen, samples)))| {
                 let occ = &occupancy[qi * p * p..(qi + 1) * p * p];
-                *seen = patch_colours(views, &quads[qi], occ, settings, colours) as u32;
+                let (n, m) = patch_colours(views, &quads[qi], occ, settings, colours);
+                (*seen, *samples) = (n as u32, m as u32);
                 for ((o, c), &full) in out.iter_mut().zip(colours.iter()).zip(occ) {
                     *o = if full {
                         c.map(|v| (v * 255.0).round().clamp(0.0, 255.0) as u8)
@@ -385,6 +391,7 @@ pub fn colour_quads(
         patch: settings.patch,
         rgb,
         seen,
+        view_samples,
     }
 }
 
@@ -449,14 +456,15 @@ struct QuadView<'a> {
 }
 
 /// Fills `out` (p×p, row-major, rgb in [0, 1]) with the quad's texel
-/// colours; returns how many texels some view saw.
+/// colours; returns how many texels some view saw and how many (texel,
+/// view) pairs gave them colour.
 fn patch_colours(
     views: &PreparedViews,
     q: &Quad,
     occ: &[bool],
     s: &TexelSettings,
     out: &mut [[f32; 3]],
-) -> usize {
+) -> (usize, usize) {
     let p = s.patch as usize;
     let step = 1.0 / (p.max(2) - 1) as f32;
     let centre = q.point(0.5, 0.5);
@@ -501,7 +509,7 @@ fn patch_colours(
         .collect();
     let facing = best_views(facing, p, occ, s.max_views);
     let mut acc = vec![[0f32; 4]; p * p];
-    accumulate(&facing, p, occ, true, &mut acc);
+    let samples = accumulate(&facing, p, occ, true, &mut acc);
     let seen = acc.iter().filter(|a| a[3] > 1e-4).count();
     if seen == 0 {
         // No view sees any of this quad: colour it from the facing views
@@ -509,7 +517,7 @@ fn patch_colours(
         accumulate(&facing, p, occ, false, &mut acc);
         if acc.iter().all(|a| a[3] <= 1e-4) {
             out.fill([0.5; 3]);
-            return 0;
+            return (0, 0);
         }
     }
     fill_from_neighbours(&mut acc, occ, p);
@@ -520,7 +528,7 @@ fn patch_colours(
             [0.5; 3]
         };
     }
-    seen
+    (seen, if seen == 0 { 0 } else { samples })
 }
 
 /// The `k` views that see most of the quad, frontal first: each facing
@@ -573,14 +581,16 @@ fn best_views<'a>(
     scored.into_iter().map(|(_, qv)| qv).collect()
 }
 
-/// Adds every facing view's weighted premultiplied colour to each texel.
+/// Adds every facing view's weighted premultiplied colour to each texel;
+/// returns how many (texel, view) samples had coverage.
 fn accumulate(
     facing: &[QuadView<'_>],
     p: usize,
     occ: &[bool],
     depth_test: bool,
     acc: &mut [[f32; 4]],
-) {
+) -> usize {
+    let mut samples = 0;
     acc.fill([0.0; 4]);
     for qv in facing {
         let cam = &qv.view.cam;
@@ -606,6 +616,7 @@ fn accumulate(
                     }
                 }
                 let v = level.bilinear(px * scale, py * scale);
+                samples += usize::from(v[3] > 0.0);
                 let a = &mut acc[ty * p + tx];
                 for ch in 0..4 {
                     a[ch] += qv.weight * v[ch];
@@ -613,6 +624,7 @@ fn accumulate(
             }
         }
     }
+    samples
 }
 
 /// Gives occupied texels without colour weight the mean of their coloured

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{bail, Context as _};
 
 use crate::bake::sweep::{self, Cache, ObjectViews, SweepOptions};
-use crate::bake::{self, carve::VoxelTest, BakeParams, Geometry};
+use crate::bake::{self, carve::VoxelTest, compare, BakeParams, Geometry};
 use crate::capture::Capture;
 use crate::metrics::Lpips;
 
@@ -33,8 +33,9 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', required_unless_present = "configs")]
     pub patch: Vec<u32>,
     /// With `--sweep`, instead of `--grid` × `--patch`: exactly these
-    /// configurations, `G:P` comma-separated (e.g. the profiler's samples).
-    #[arg(long, value_delimiter = ',', value_parser = parse_config, requires = "sweep")]
+    /// configurations, `G:P` comma-separated (e.g. the profiler's samples);
+    /// with `--compare`, the bakes to compare.
+    #[arg(long, value_delimiter = ',', value_parser = parse_config)]
     pub configs: Vec<(u32, u32)>,
     /// Output folder of the asset (MobileNeRF export layout).
     #[arg(long)]
@@ -87,10 +88,35 @@ pub struct Args {
     /// any-point or footprint).
     #[arg(long, default_value = "centre", value_parser = parse_voxel_test)]
     pub voxel_test: VoxelTest,
+    /// Comparison pictures and tables (boxed: keeps the CLI's enum small).
+    #[command(flatten)]
+    pub reports: Box<Reports>,
     /// LPIPS weights (default: `lpips/` in the shared data folder; LPIPS is
     /// left out if absent).
     #[arg(long)]
     pub lpips_weights: Option<PathBuf>,
+}
+
+/// Flags of `nerflex bake` that write comparisons: a side-by-side picture
+/// of bakes, a markdown table of a sweep.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct Reports {
+    /// Bake every `--configs` entry of one object, measure each on every
+    /// test view (per view and mean) and write a picture here: the ground
+    /// truth of test view `--view` next to each bake's render, over white,
+    /// scaled to `--renders-size` (default 400).
+    #[arg(long, requires = "configs", conflicts_with = "sweep")]
+    pub compare: Option<PathBuf>,
+    /// The test view (index into `transforms_test.json`) `--compare` shows.
+    #[arg(long, default_value_t = 0)]
+    pub view: usize,
+    /// With `--sweep`: also write a markdown table of the samples at
+    /// `--table-configs` (one row per object and configuration) here.
+    #[arg(long, requires = "sweep")]
+    pub table: Option<PathBuf>,
+    /// The configurations `--table` lists, `G:P` comma-separated.
+    #[arg(long, value_delimiter = ',', value_parser = parse_config, default_value = "16:5,128:17,256:17")]
+    pub table_configs: Vec<(u32, u32)>,
 }
 
 fn parse_config(s: &str) -> Result<(u32, u32), String> {
@@ -157,26 +183,6 @@ fn lpips(args: &Args) -> anyhow::Result<Option<Lpips>> {
     }
 }
 
-/// A picture for people: composited over white, optionally scaled so its
-/// longer side is `size` pixels.
-fn picture(img: &image::RgbaImage, size: Option<u32>) -> image::RgbaImage {
-    let white = image::RgbaImage::from_fn(img.width(), img.height(), |x, y| {
-        let p = img.get_pixel(x, y).0;
-        let a = u32::from(p[3]);
-        let c = |v: u8| ((u32::from(v) * a + 255 * (255 - a) + 127) / 255) as u8;
-        image::Rgba([c(p[0]), c(p[1]), c(p[2]), 255])
-    });
-    match size {
-        Some(s) if s > 0 && s < img.width().max(img.height()) => {
-            let k = f64::from(s) / f64::from(img.width().max(img.height()));
-            let w = ((f64::from(img.width()) * k).round() as u32).max(1);
-            let h = ((f64::from(img.height()) * k).round() as u32).max(1);
-            image::imageops::resize(&white, w, h, image::imageops::FilterType::Triangle)
-        }
-        _ => white,
-    }
-}
-
 fn base_params(args: &Args) -> BakeParams {
     let mut p = BakeParams::new(0, 0);
     p.frontal_power = args.frontal_power;
@@ -189,6 +195,12 @@ fn base_params(args: &Args) -> BakeParams {
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.sweep {
         return run_sweep(&args);
+    }
+    if !args.configs.is_empty() && args.reports.compare.is_none() {
+        bail!("--configs needs --sweep or --compare");
+    }
+    if let Some(out) = &args.reports.compare {
+        return run_compare(&args, out);
     }
     let (g, p) = match (args.grid.as_slice(), args.patch.as_slice()) {
         ([g], [p]) => (*g, *p),
@@ -231,8 +243,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         s.occupied_voxels,
     );
     println!(
-        "texels: {} seen, {} unseen (filled), {} empty",
-        s.seen_texels, s.unseen_texels, s.empty_texels
+        "texels: {} seen (from {:.2} views each on average), {} unseen (filled), {} empty",
+        s.seen_texels,
+        s.view_samples as f64 / s.seen_texels.max(1) as f64,
+        s.unseen_texels,
+        s.empty_texels
     );
     println!(
         "size: {file_bytes} file bytes ({:.1} MiB), {gpu_bytes} GPU bytes ({:.1} MiB)",
@@ -248,33 +263,134 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if args.measure {
         let net = lpips(&args)?;
-        let (q, renders) = sweep::measure(
+        let m = sweep::measure_views(
             &asset,
             &obj.test,
             &sweep::fixed_point_render,
             net.as_ref(),
             args.renders.is_some(),
         )?;
+        let (q, renders) = (m.mean, m.renders);
+        for (i, v) in m.views.iter().enumerate() {
+            println!("  test view {i}: {}", quality_line(v));
+        }
         if let Some(dir) = &args.renders {
             std::fs::create_dir_all(dir)
                 .with_context(|| format!("{}: cannot create", dir.display()))?;
             for (i, (img, (_, truth))) in renders.iter().zip(&obj.test).enumerate() {
                 for (name, pic) in [("test", img), ("truth", truth)] {
                     let path = dir.join(format!("{name}_{i}.png"));
-                    picture(pic, args.renders_size)
+                    compare::over_white(pic, args.renders_size)
                         .save(&path)
                         .with_context(|| format!("{}: cannot write", path.display()))?;
                 }
             }
         }
         println!(
-            "quality over {} test views: SSIM {:.4}, PSNR {:.2} dB{}",
+            "quality over {} test views: {}",
             obj.test.len(),
-            q.ssim,
-            q.psnr,
-            q.lpips.map_or(String::new(), |l| format!(", LPIPS {l:.4}"))
+            quality_line(&q)
         );
     }
+    Ok(())
+}
+
+fn quality_line(q: &sweep::Quality) -> String {
+    format!(
+        "SSIM {:.4}, PSNR {:.2} dB{}",
+        q.ssim,
+        q.psnr,
+        q.lpips.map_or(String::new(), |l| format!(", LPIPS {l:.4}"))
+    )
+}
+
+/// `--compare`: bake each configuration, measure it on every test view,
+/// and draw the ground truth of one view beside each render.
+fn run_compare(args: &Args, out: &std::path::Path) -> anyhow::Result<()> {
+    let objects = load_objects(args)?;
+    let [obj] = objects.as_slice() else {
+        bail!("--compare bakes one object: give one --capture and at most one --object");
+    };
+    let Some((_, truth)) = obj.test.get(args.reports.view) else {
+        bail!(
+            "--view {}: the capture has {} test views (0..{})",
+            args.reports.view,
+            obj.test.len(),
+            obj.test.len()
+        );
+    };
+    let net = lpips(args)?;
+    let mut renders = Vec::new();
+    let mut captions = Vec::new();
+    for &(g, p) in &args.configs {
+        let mut params = base_params(args);
+        params.grid = g;
+        params.patch = p;
+        params.search_box = obj.search_box;
+        let t = Instant::now();
+        let baked = bake::bake(&obj.bake_views(), &params)?;
+        let t_bake = t.elapsed().as_secs_f64();
+        let (quads, gpu) = (baked.quads.len(), baked.gpu_bytes());
+        let asset = baked.into_asset()?;
+        let file = bake::file_bytes(&asset)?;
+        let m = sweep::measure_views(
+            &asset,
+            &obj.test,
+            &sweep::fixed_point_render,
+            net.as_ref(),
+            true,
+        )?;
+        println!(
+            "{} g={g} p={p}: {quads} quads, {file} file bytes, {gpu} GPU bytes, bake {t_bake:.2} s",
+            obj.name
+        );
+        for (i, v) in m.views.iter().enumerate() {
+            let mark = if i == args.reports.view {
+                "  (shown)"
+            } else {
+                ""
+            };
+            println!("  test view {i}: {}{mark}", quality_line(v));
+        }
+        println!(
+            "  mean of {} views: {}",
+            m.views.len(),
+            quality_line(&m.mean)
+        );
+        let shown = m.views[args.reports.view];
+        captions.push(vec![
+            format!("g={g} p={p}: {quads} quads"),
+            format!("SSIM {:.3}  PSNR {:.1} dB", shown.ssim, shown.psnr),
+            shown
+                .lpips
+                .map_or(String::new(), |l| format!("LPIPS {l:.3}")),
+        ]);
+        let mut r = m.renders;
+        renders.push(r.swap_remove(args.reports.view));
+    }
+    let mut tiles = vec![compare::Tile {
+        image: truth,
+        caption: vec![
+            format!("{}: ground truth", obj.name),
+            format!("test view {}", args.reports.view),
+        ],
+    }];
+    for (img, caption) in renders.iter().zip(captions) {
+        tiles.push(compare::Tile {
+            image: img,
+            caption,
+        });
+    }
+    let pic = compare::strip(&tiles, Some(args.renders_size.unwrap_or(400)));
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create", dir.display()))?;
+    }
+    let tmp = out.with_extension("tmp.png");
+    pic.save(&tmp)
+        .with_context(|| format!("{}: cannot write", tmp.display()))?;
+    std::fs::rename(&tmp, out).with_context(|| format!("{}: cannot write", out.display()))?;
+    println!("wrote {}", out.display());
     Ok(())
 }
 
@@ -305,6 +421,12 @@ fn run_sweep(args: &Args) -> anyhow::Result<()> {
             println!("wrote {}", p.display());
         }
     }
+    if let Some(path) = &args.reports.table {
+        let text = sweep::markdown_table(&report.samples, &args.reports.table_configs);
+        crate::asset::write_atomic(path, text.as_bytes())
+            .with_context(|| format!("{}: cannot write", path.display()))?;
+        println!("wrote {}", path.display());
+    }
     let breaks = sweep::monotonicity_report(&report.samples, 0.0);
     println!(
         "{} neighbouring configuration pairs where size does not grow or SSIM falls{}",
@@ -313,6 +435,20 @@ fn run_sweep(args: &Args) -> anyhow::Result<()> {
     );
     for b in &breaks {
         println!("  {b}");
+    }
+    let m = sweep::monotonicity_summary(&report.samples);
+    for (what, st) in [("g", &m.g), ("p", &m.p)] {
+        println!(
+            "next {what}: {} pairs, size grows in {}, SSIM falls in {} ({} by more than 0.001), largest drop {:.6}{}",
+            st.pairs,
+            st.size_grows,
+            st.ssim_falls,
+            st.ssim_falls_over_1e3,
+            st.max_ssim_drop,
+            st.max_drop_at
+                .as_ref()
+                .map_or(String::new(), |s| format!(" at {s}"))
+        );
     }
     println!(
         "{} samples ({} baked, {} reused from {}) in {:.1} s → {}",
