@@ -84,6 +84,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         real_size: args.real_size,
         fps_scene: Preset::Scene3,
     };
+    args.pipeline.ignore_default_store(&args.out)?;
+    crate::cli::run::ignore_in_git(&args.out.join("scenes"))?;
     let lpips = args.pipeline.lpips()?;
     let bar = args.pipeline.bar();
     let result = eval::run(&opts, &args.out, lpips.as_ref(), &bar);

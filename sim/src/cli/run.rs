@@ -89,6 +89,17 @@ impl PipelineArgs {
         Ok(opts)
     }
 
+    /// Keeps the default bake store (OUT/bakes, about 1 GB for a built-in
+    /// scene) out of git when OUT is inside a checkout (`results/run` by
+    /// default): a `.gitignore` of `*` in it. A store named with `--store`
+    /// is left alone.
+    pub fn ignore_default_store(&self, out: &Path) -> anyhow::Result<()> {
+        if self.store.is_none() {
+            ignore_in_git(&out.join("bakes"))?;
+        }
+        Ok(())
+    }
+
     /// The LPIPS network (unless `--no-lpips` or its weights are absent).
     pub fn lpips(&self) -> anyhow::Result<Option<Lpips>> {
         lpips(self.no_lpips)
@@ -98,6 +109,21 @@ impl PipelineArgs {
     pub fn bar(&self) -> Bar {
         Bar::new(self.quiet)
     }
+}
+
+/// Creates `dir` with a `.gitignore` of `*` in it (work files that must not
+/// be committed by accident), unless it already has one.
+pub fn ignore_in_git(dir: &Path) -> anyhow::Result<()> {
+    let f = dir.join(".gitignore");
+    if f.exists() {
+        return Ok(());
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    std::fs::write(
+        &f,
+        "# work files of nerflex (bakes, captures): not for git\n*\n",
+    )
+    .with_context(|| format!("{}: cannot write", f.display()))
 }
 
 /// A progress bar over the stages.
@@ -166,6 +192,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("{}: cannot create", args.out.display()))?;
+    args.pipeline.ignore_default_store(&args.out)?;
     opts.renders = Some(args.out.join("renders"));
     let lpips = args.pipeline.lpips()?;
     let bar = args.pipeline.bar();
@@ -228,6 +255,19 @@ mod tests {
         assert_eq!(o.store, Path::new("OUT").join("bakes"));
         let o = options(&["--store", "S"]).unwrap();
         assert_eq!(o.store, Path::new("S"));
+    }
+
+    #[test]
+    fn work_folders_are_kept_out_of_git() {
+        let dir = tempfile::tempdir().unwrap();
+        let cli = Cli::try_parse_from(["x"]).unwrap();
+        cli.pipeline.ignore_default_store(dir.path()).unwrap();
+        let text = std::fs::read_to_string(dir.path().join("bakes/.gitignore")).unwrap();
+        assert!(text.lines().any(|l| l == "*"), "{text}");
+        let cli = Cli::try_parse_from(["x", "--store", "elsewhere"]).unwrap();
+        let other = dir.path().join("other");
+        cli.pipeline.ignore_default_store(&other).unwrap();
+        assert!(!other.exists());
     }
 
     #[test]
