@@ -1,7 +1,9 @@
-//! Cost of the device simulator: the 2000-frame loop on precomputed
-//! coverage (the model's own overhead), and one coverage pass of a baked
-//! object at the simulator's default 160-pixel width (what each measured
-//! turntable angle costs).
+//! Cost of the device simulator: one frame of the model (the work at a
+//! turntable angle, interpolated from the measured angles, and its cost and
+//! FPS on the device), the 2000-frame loop on precomputed coverage (the
+//! model's own overhead), and one coverage pass of a baked object at the
+//! simulator's default 160-pixel width (what each measured turntable angle
+//! costs; needs the shared data).
 //!
 //! `cargo bench -p nerflex-hostbench --bench simulate`
 
@@ -46,6 +48,16 @@ fn frame_loop(c: &mut Criterion) {
     for k in 0..=5 {
         tt.measure_stage(k).expect("synthetic coverage");
     }
+    c.bench_function("simulate/one frame of the model (work + cost + FPS)", |b| {
+        let mut angle = 0.0f64;
+        b.iter(|| {
+            // Step the angle so the interpolation does not always hit one pair.
+            angle = (angle + 0.013_7) % 1.0;
+            let (work, _) = tt.work(5, black_box(angle)).expect("cached coverage");
+            let cost = device.frame_cost(&work);
+            black_box(device.fps(cost.total_s(), false))
+        })
+    });
     c.bench_function("simulate/2000 frames, 5 objects (coverage cached)", |b| {
         b.iter(|| {
             let sim = simulate(&device, black_box(&items), &tt, SimOptions::default())

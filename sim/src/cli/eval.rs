@@ -1,10 +1,9 @@
 //! `nerflex eval`: the NeRFlex paper's evaluation, regenerated from scratch
 //! (`nerflex_sim::eval`), written as `eval.json`, `report.md` and PNG plots.
 
-use crate::cli::run::{lpips, Bar};
+use crate::cli::run::PipelineArgs;
 use crate::device::Device;
 use crate::eval::{self, EvalOptions};
-use crate::pipeline::Options;
 use crate::procedural::Preset;
 use anyhow::{bail, Context as _};
 use std::path::PathBuf;
@@ -35,27 +34,9 @@ pub struct Args {
     /// Image side of the composed real capture, pixels.
     #[arg(long, default_value_t = 200)]
     pub real_size: u32,
-    /// Image side of the built-in captures, pixels.
-    #[arg(long, default_value_t = 160)]
-    pub size: u32,
-    /// Training views of the built-in captures.
-    #[arg(long, default_value_t = 16)]
-    pub views: usize,
-    /// Held-out views of the built-in captures.
-    #[arg(long, default_value_t = 4)]
-    pub test_views: usize,
-    /// Frames per simulation.
-    #[arg(long, default_value_t = 2000)]
-    pub frames: usize,
-    /// Folder of kept bakes [default: OUT/bakes].
-    #[arg(long, value_name = "DIR")]
-    pub store: Option<PathBuf>,
-    /// Leave LPIPS out even when its weights are available.
-    #[arg(long)]
-    pub no_lpips: bool,
-    /// No progress bar.
-    #[arg(long)]
-    pub quiet: bool,
+    /// Settings shared with `nerflex run`.
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
 }
 
 /// Runs `nerflex eval`.
@@ -63,8 +44,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.scenes.is_empty() {
         bail!("--scenes: give at least one scene");
     }
-    if args.frames == 0 {
-        bail!("--frames: must be at least 1");
+    let pipeline = args.pipeline.options(&args.out)?;
+    if !(16..=2048).contains(&args.real_size) {
+        bail!(
+            "--real-size: must be 16..=2048 pixels, got {}",
+            args.real_size
+        );
     }
     let devices = args
         .devices
@@ -91,12 +76,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             None => Vec::new(),
         }
     };
-    let mut pipeline =
-        Options::reduced(args.store.clone().unwrap_or_else(|| args.out.join("bakes")));
-    pipeline.size = args.size;
-    pipeline.train_views = args.views;
-    pipeline.test_views = args.test_views;
-    pipeline.sim.frames = args.frames;
     let opts = EvalOptions {
         pipeline,
         scenes: args.scenes.clone(),
@@ -105,8 +84,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         real_size: args.real_size,
         fps_scene: Preset::Scene3,
     };
-    let lpips = lpips(args.no_lpips)?;
-    let bar = Bar::new(args.quiet);
+    args.pipeline.ignore_default_store(&args.out)?;
+    crate::cli::run::ignore_in_git(&args.out.join("scenes"))?;
+    let lpips = args.pipeline.lpips()?;
+    let bar = args.pipeline.bar();
     let result = eval::run(&opts, &args.out, lpips.as_ref(), &bar);
     bar.finish();
     let report = result.context("evaluation")?;

@@ -11,7 +11,7 @@ use crate::procedural::Preset;
 use crate::simulate::{self, SimOptions};
 use anyhow::{bail, Context as _};
 use nerflex_core::units::Bytes;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Flags of `nerflex run`.
 #[derive(Debug, clap::Args)]
@@ -32,16 +32,25 @@ pub struct Args {
     /// Output folder.
     #[arg(long, value_name = "DIR", default_value = "results/run")]
     pub out: PathBuf,
-    /// Image side of a generated scene, pixels.
+    /// Settings shared with `nerflex eval`.
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
+}
+
+/// Flags shared by `nerflex run` and `nerflex eval`: the built-in captures'
+/// size, the simulation's length, the bake store, LPIPS and the progress bar.
+#[derive(Debug, clap::Args)]
+pub struct PipelineArgs {
+    /// Image side of a generated (built-in) capture, pixels.
     #[arg(long, default_value_t = 160)]
     pub size: u32,
-    /// Training views of a generated scene.
+    /// Training views of a generated capture.
     #[arg(long, default_value_t = 16)]
     pub views: usize,
-    /// Held-out views of a generated scene.
+    /// Held-out views of a generated capture.
     #[arg(long, default_value_t = 4)]
     pub test_views: usize,
-    /// Frames of the turntable simulation.
+    /// Frames of each turntable simulation.
     #[arg(long, default_value_t = 2000)]
     pub frames: usize,
     /// Folder of kept bakes, shared between runs [default: OUT/bakes].
@@ -53,6 +62,68 @@ pub struct Args {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+impl PipelineArgs {
+    /// Checks the flags and turns them into the pipeline's options (the
+    /// reduced defaults otherwise), with the bake store under `out` unless
+    /// `--store` names one.
+    pub fn options(&self, out: &Path) -> anyhow::Result<Options> {
+        if self.frames == 0 {
+            bail!("--frames: must be at least 1");
+        }
+        if !(16..=2048).contains(&self.size) {
+            bail!("--size: must be 16..=2048 pixels, got {}", self.size);
+        }
+        if self.views < 2 || self.test_views == 0 {
+            bail!("--views must be at least 2 and --test-views at least 1");
+        }
+        let mut opts = Options::reduced(self.store.clone().unwrap_or_else(|| out.join("bakes")));
+        opts.size = self.size;
+        opts.train_views = self.views;
+        opts.test_views = self.test_views;
+        opts.sim = SimOptions {
+            frames: self.frames,
+            ..SimOptions::default()
+        };
+        Ok(opts)
+    }
+
+    /// Keeps the default bake store (OUT/bakes, about 1 GB for a built-in
+    /// scene) out of git when OUT is inside a checkout (`results/run` by
+    /// default): a `.gitignore` of `*` in it. A store named with `--store`
+    /// is left alone.
+    pub fn ignore_default_store(&self, out: &Path) -> anyhow::Result<()> {
+        if self.store.is_none() {
+            ignore_in_git(&out.join("bakes"))?;
+        }
+        Ok(())
+    }
+
+    /// The LPIPS network (unless `--no-lpips` or its weights are absent).
+    pub fn lpips(&self) -> anyhow::Result<Option<Lpips>> {
+        lpips(self.no_lpips)
+    }
+
+    /// The progress bar (hidden with `--quiet`).
+    pub fn bar(&self) -> Bar {
+        Bar::new(self.quiet)
+    }
+}
+
+/// Creates `dir` with a `.gitignore` of `*` in it (work files that must not
+/// be committed by accident), unless it already has one.
+pub fn ignore_in_git(dir: &Path) -> anyhow::Result<()> {
+    let f = dir.join(".gitignore");
+    if f.exists() {
+        return Ok(());
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    std::fs::write(
+        &f,
+        "# work files of nerflex (bakes, captures): not for git\n*\n",
+    )
+    .with_context(|| format!("{}: cannot write", f.display()))
 }
 
 /// A progress bar over the stages.
@@ -113,15 +184,7 @@ pub fn lpips(no_lpips: bool) -> anyhow::Result<Option<Lpips>> {
 /// Runs `nerflex run`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let device = Device::lookup(&args.device)?;
-    if args.frames == 0 {
-        bail!("--frames: must be at least 1");
-    }
-    if !(16..=2048).contains(&args.size) {
-        bail!("--size: must be 16..=2048 pixels, got {}", args.size);
-    }
-    if args.views < 2 || args.test_views == 0 {
-        bail!("--views must be at least 2 and --test-views at least 1");
-    }
+    let mut opts = args.pipeline.options(&args.out)?;
     let input = match (&args.capture, args.preset) {
         (Some(c), _) => Input::Capture(c.clone()),
         (None, Some(p)) => Input::Preset(p),
@@ -129,17 +192,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("{}: cannot create", args.out.display()))?;
-    let mut opts = Options::reduced(args.store.clone().unwrap_or_else(|| args.out.join("bakes")));
-    opts.size = args.size;
-    opts.train_views = args.views;
-    opts.test_views = args.test_views;
-    opts.sim = SimOptions {
-        frames: args.frames,
-        ..SimOptions::default()
-    };
+    args.pipeline.ignore_default_store(&args.out)?;
     opts.renders = Some(args.out.join("renders"));
-    let lpips = lpips(args.no_lpips)?;
-    let bar = Bar::new(args.quiet);
+    let lpips = args.pipeline.lpips()?;
+    let bar = args.pipeline.bar();
     let t0 = std::time::Instant::now();
     let result = pipeline::run_one(
         &input,
@@ -173,4 +229,57 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser as _;
+
+    #[derive(clap::Parser)]
+    struct Cli {
+        #[command(flatten)]
+        pipeline: PipelineArgs,
+    }
+
+    fn options(flags: &[&str]) -> anyhow::Result<Options> {
+        let cli = Cli::try_parse_from(std::iter::once("x").chain(flags.iter().copied()))?;
+        cli.pipeline.options(Path::new("OUT"))
+    }
+
+    #[test]
+    fn shared_flags_reach_the_options() {
+        let o = options(&["--size", "64", "--views", "5", "--frames", "10"]).unwrap();
+        assert_eq!((o.size, o.train_views, o.test_views), (64, 5, 4));
+        assert_eq!(o.sim.frames, 10);
+        assert_eq!(o.store, Path::new("OUT").join("bakes"));
+        let o = options(&["--store", "S"]).unwrap();
+        assert_eq!(o.store, Path::new("S"));
+    }
+
+    #[test]
+    fn work_folders_are_kept_out_of_git() {
+        let dir = tempfile::tempdir().unwrap();
+        let cli = Cli::try_parse_from(["x"]).unwrap();
+        cli.pipeline.ignore_default_store(dir.path()).unwrap();
+        let text = std::fs::read_to_string(dir.path().join("bakes/.gitignore")).unwrap();
+        assert!(text.lines().any(|l| l == "*"), "{text}");
+        let cli = Cli::try_parse_from(["x", "--store", "elsewhere"]).unwrap();
+        let other = dir.path().join("other");
+        cli.pipeline.ignore_default_store(&other).unwrap();
+        assert!(!other.exists());
+    }
+
+    #[test]
+    fn bad_shared_flags_name_the_flag() {
+        for (flags, name) in [
+            (&["--frames", "0"][..], "--frames"),
+            (&["--size", "8"][..], "--size"),
+            (&["--views", "1"][..], "--views"),
+            (&["--test-views", "0"][..], "--test-views"),
+        ] {
+            let e = options(flags).err().unwrap();
+            assert!(format!("{e:#}").contains(name), "{flags:?}: {e:#}");
+        }
+    }
 }

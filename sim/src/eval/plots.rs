@@ -198,7 +198,7 @@ pub fn draw(r: &EvalReport, out: &Path) -> anyhow::Result<Vec<(String, String)>>
     }
     // Overhead.
     let ours = overhead_means(r);
-    let c = BarChart::new("Overhead (seconds, log bars shown as values)")
+    let c = BarChart::new("Overhead: paper vs this implementation (seconds, value on each bar)")
         .categories(super::PAPER_OVERHEAD_S.iter().map(|(n, _)| *n))
         .series("paper", super::PAPER_OVERHEAD_S.iter().map(|(_, s)| *s))
         .series("this implementation", ours)

@@ -528,11 +528,43 @@ pub fn baseline_views(cap: &Capture) -> anyhow::Result<(Option<ObjectViews>, Vec
         Some(s) if s.objects.len() > 1 => s
             .objects
             .iter()
-            .map(|o| ObjectViews::from_capture(cap, Some(&o.name)))
+            .map(|o| ObjectViews::from_capture(cap, Some(&o.name)).map(drop_absent_views))
             .collect::<anyhow::Result<Vec<_>>>()?,
         _ => vec![whole_capture_views(cap, "block")],
     };
     Ok((Some(single), block))
+}
+
+/// Leaves out the training views in which the object has no pixel (hidden
+/// behind others or out of frame), as the segmentation does for its sets:
+/// a silhouette carver would read such a view as "the object is absent" and
+/// empty the whole grid (scene2's gear is hidden in one of 16 views). The
+/// content hash changes only when a view is dropped, so stored bakes of
+/// unaffected objects stay valid.
+fn drop_absent_views(mut v: ObjectViews) -> ObjectViews {
+    let before = v.train.len();
+    let mut kept = Vec::new();
+    v.train = std::mem::take(&mut v.train)
+        .into_iter()
+        .enumerate()
+        .filter_map(|(i, t)| {
+            let present = match &t.2 {
+                Some((mask, label)) => mask.pixels().any(|m| m.0[0] == *label),
+                None => true,
+            };
+            present.then(|| {
+                kept.push(i);
+                t
+            })
+        })
+        .collect();
+    if v.train.len() != before {
+        let mut h = Fnv64::default();
+        h.write(&v.content_hash.to_le_bytes());
+        h.write(format!("views kept {kept:?}").as_bytes());
+        v.content_hash = h.finish();
+    }
+    v
 }
 
 /// Block-NeRF's views of a composite: each source capture, resized like the
@@ -854,5 +886,48 @@ impl simulate::CoverageSource for NoCoverage {
     }
     fn coverage(&self, _: usize, _: &Camera) -> anyhow::Result<simulate::ViewCoverage> {
         bail!("coverage of a scene that failed to load")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::{Camera, Intrinsics};
+    use image::{GrayImage, Luma, RgbaImage};
+
+    fn views(labels_present: &[bool]) -> ObjectViews {
+        let cam = Camera {
+            intrinsics: Intrinsics::from_fov_x(0.8, 4, 4),
+            c2w: glam::Mat4::IDENTITY,
+        };
+        ObjectViews {
+            name: "o".into(),
+            content_hash: 7,
+            train: labels_present
+                .iter()
+                .map(|&present| {
+                    let mut m = GrayImage::new(4, 4);
+                    // Another object (label 2) is always in view.
+                    m.put_pixel(0, 0, Luma([2]));
+                    if present {
+                        m.put_pixel(1, 1, Luma([3]));
+                    }
+                    (cam, RgbaImage::new(4, 4), Some((m, 3)))
+                })
+                .collect(),
+            test: Vec::new(),
+            search_box: None,
+        }
+    }
+
+    #[test]
+    fn views_without_the_object_are_left_out_and_rekeyed() {
+        let all = drop_absent_views(views(&[true, true, true]));
+        assert_eq!((all.train.len(), all.content_hash), (3, 7));
+        let some = drop_absent_views(views(&[true, false, true]));
+        assert_eq!(some.train.len(), 2);
+        assert_ne!(some.content_hash, 7);
+        let other = drop_absent_views(views(&[false, true, true]));
+        assert_ne!(other.content_hash, some.content_hash);
     }
 }
