@@ -910,7 +910,8 @@ impl CaptureWriter {
     /// Writes `transforms_train.json`, `transforms_test.json` (when test
     /// frames were written) and `scene.json` (when given), each atomically.
     /// Frame order is by index. Fails if no training frame was written or if
-    /// a mask value exceeds the scene's object count.
+    /// a mask value names no object of the scene (and is not its declared
+    /// [`SceneInfo::other_objects_mask_value`]).
     pub fn finish(self, scene: Option<&SceneInfo>) -> Result<PathBuf, CaptureError> {
         let st = self.state.into_inner().unwrap_or_else(|e| e.into_inner());
         let Some((w, h, _)) = st.size else {
@@ -1037,6 +1038,50 @@ mod tests {
         assert!((k.fx - c1.intrinsics.fx).abs() < 1e-3 && (k.cx - c1.intrinsics.cx).abs() < 1e-3);
         assert!((c.train[0].camera.intrinsics.fx - c0.intrinsics.fx).abs() < 1e-3);
         assert!(c.has_masks());
+    }
+
+    #[test]
+    fn the_other_objects_mask_value_is_accepted_only_when_declared() {
+        let one = || {
+            SceneInfo::new(vec![ObjectInfo {
+                name: "a".into(),
+                kind: "ball".into(),
+                mask_value: 1,
+                placement: Placement::default(),
+                bounds_min: [-1.0; 3],
+                bounds_max: [1.0; 3],
+                complexity_quads: None,
+                texture_frequency: None,
+                extra: Default::default(),
+            }])
+        };
+        let mut bad = one();
+        bad.other_objects_mask_value = Some(1);
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .contains("other_objects_mask_value"));
+        // A mask with 0, the object (1) and another object (255).
+        let img = RgbaImage::new(4, 1);
+        let mask = GrayImage::from_raw(4, 1, vec![0, 1, 255, 1]).unwrap();
+        let write = |scene: &SceneInfo| {
+            let dir = tempfile::tempdir().unwrap();
+            let w = CaptureWriter::create(dir.path(), 0.69).unwrap();
+            w.write_frame(Split::Train, 0, "r_0", &cam(4, 1), &img, Some(&mask))
+                .unwrap();
+            w.finish(Some(scene)).map(|_| dir)
+        };
+        let e = write(&one()).unwrap_err().to_string();
+        assert!(e.contains("value 255") && e.contains("1 objects"), "{e}");
+        let mut declared = one();
+        declared.other_objects_mask_value = Some(OTHER_OBJECTS_MASK_VALUE);
+        let dir = write(&declared).unwrap();
+        let c = Capture::load(dir.path()).unwrap();
+        assert_eq!(c.train[0].mask.as_ref(), Some(&mask));
+        // The same folder without the declaration is refused on load.
+        one().write(&dir.path().join(SCENE_FILE)).unwrap();
+        let e = Capture::load(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("mask value 255"), "{e}");
     }
 
     #[test]
