@@ -267,4 +267,14 @@ fn written_folders_load_back_as_captures_with_their_masks() {
         .iter()
         .all(|f| f.mask.as_raw().iter().all(|&v| v <= 1 || v == 255)));
     assert!(one.train.iter().any(|f| f.mask.as_raw().contains(&255)));
+    // Segmenting that folder again keeps the marks (the other objects are
+    // still outside it).
+    let again = tempfile::tempdir().unwrap();
+    let seg2 = segment(&one, &SegmentOptions::default(), again.path()).unwrap();
+    let back2 = SegCapture::load(&again.path().join(&seg2.groups[0].folder)).unwrap();
+    assert_eq!(
+        back2.scene.as_ref().unwrap().other_objects_mask_value,
+        Some(255)
+    );
+    assert!(back2.train.iter().any(|f| f.mask.as_raw().contains(&255)));
 }

@@ -537,11 +537,12 @@ fn write_group_into(
     let writer = CaptureWriter::create(tmp_dir, cap.camera_angle_x)?;
     // Where objects outside the group hid it is recorded only when the
     // folder gets a scene.json declaring the value (without one, a mask
-    // value names an object).
-    let mark_others = cap
-        .scene
-        .as_ref()
-        .is_some_and(|s| group.objects.len() < s.objects.len());
+    // value names an object), and only if there are such objects: some
+    // outside the group, or outside the source folder itself (a group
+    // folder segmented again).
+    let mark_others = cap.scene.as_ref().is_some_and(|s| {
+        group.objects.len() < s.objects.len() || s.other_objects_mask_value.is_some()
+    });
     let size: Mutex<Option<(u32, u32, String)>> = Mutex::new(None);
     let mut counts = [0usize; 2];
     let mut zoom_sum = 0.0;
