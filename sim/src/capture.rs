@@ -34,6 +34,10 @@ pub const TRAIN_TRANSFORMS: &str = "transforms_train.json";
 pub const TEST_TRANSFORMS: &str = "transforms_test.json";
 /// File name of the scene description.
 pub const SCENE_FILE: &str = "scene.json";
+
+/// The mask value segmentation writes where an object outside a group's
+/// folder covers the view ([`SceneInfo::other_objects_mask_value`]).
+pub const OTHER_OBJECTS_MASK_VALUE: u8 = 255;
 /// Suffix that turns a frame's `file_path` into its mask's path.
 pub const MASK_SUFFIX: &str = "_mask.png";
 /// Value of [`SceneInfo::format`] this version writes and reads.
@@ -291,6 +295,14 @@ pub struct SceneInfo {
     /// Grid cells per axis used for `complexity_quads`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub complexity_grid: Option<u32>,
+    /// The mask value (above every object's) that marks pixels where an
+    /// object *not listed here* covers the view (usually
+    /// [`OTHER_OBJECTS_MASK_VALUE`]): a segmentation group's folder keeps
+    /// the rest of the scene out of its images but records where it hid
+    /// the group's objects, so the baker treats those pixels as unknown
+    /// rather than background (see `docs/segmentation.md`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub other_objects_mask_value: Option<u8>,
     /// Other keys, kept so a rewrite loses nothing.
     #[serde(flatten)]
     pub extra: serde_json::Map<String, serde_json::Value>,
@@ -306,8 +318,16 @@ impl SceneInfo {
             seed: None,
             preset: None,
             complexity_grid: None,
+            other_objects_mask_value: None,
             extra: Default::default(),
         }
+    }
+
+    /// Whether an instance mask of this scene may hold value `v`: 0
+    /// (nothing), an object's value, or the declared
+    /// [`SceneInfo::other_objects_mask_value`].
+    pub fn mask_value_allowed(&self, v: u8) -> bool {
+        usize::from(v) <= self.objects.len() || self.other_objects_mask_value == Some(v)
     }
 
     /// Reads and validates `scene.json`.
@@ -359,6 +379,14 @@ impl SceneInfo {
                 "objects: {} objects, masks hold at most 255",
                 self.objects.len()
             ));
+        }
+        if let Some(v) = self.other_objects_mask_value {
+            if usize::from(v) <= self.objects.len() {
+                return Err(format!(
+                    "other_objects_mask_value = {v} must exceed every object's mask value (1..={})",
+                    self.objects.len()
+                ));
+            }
         }
         let mut names = std::collections::HashSet::new();
         for (i, o) in self.objects.iter().enumerate() {
@@ -540,7 +568,7 @@ impl Capture {
                 let n = scene.objects.len();
                 if let Some((x, y, v)) = m
                     .enumerate_pixels()
-                    .find(|(_, _, p)| usize::from(p.0[0]) > n)
+                    .find(|(_, _, p)| !scene.mask_value_allowed(p.0[0]))
                     .map(|(x, y, p)| (x, y, p.0[0]))
                 {
                     return Err(CaptureError::Invalid {
@@ -712,8 +740,8 @@ struct WriterState {
     size: Option<(u32, u32, String)>,
     /// Whether frames carry masks (set by the first frame).
     masks: Option<bool>,
-    /// Largest mask value written.
-    max_mask_value: u8,
+    /// Which mask values were written (bit v of word v / 64).
+    mask_values: [u64; 4],
     train: BTreeMap<usize, FrameEntry>,
     test: BTreeMap<usize, FrameEntry>,
 }
@@ -831,9 +859,10 @@ impl CaptureWriter {
             }
         }
         write_png(&ipath, &DynamicImage::ImageRgba8(image.clone()))?;
-        let max_mask_value = mask
-            .and_then(|m| m.pixels().map(|p| p.0[0]).max())
-            .unwrap_or(0);
+        let mut mask_values = [0u64; 4];
+        for &v in mask.map_or(&[][..], |m| m.as_raw().as_slice()) {
+            mask_values[usize::from(v / 64)] |= 1 << (v % 64);
+        }
         if let Some(m) = mask {
             write_png(
                 &mask_path(&self.dir, &file_path),
@@ -842,7 +871,9 @@ impl CaptureWriter {
         }
         let entry = self.entry(&file_path, camera);
         let mut st = self.lock();
-        st.max_mask_value = st.max_mask_value.max(max_mask_value);
+        for (a, b) in st.mask_values.iter_mut().zip(mask_values) {
+            *a |= b;
+        }
         match split {
             Split::Train => st.train.insert(index, entry),
             Split::Test => st.test.insert(index, entry),
@@ -879,7 +910,8 @@ impl CaptureWriter {
     /// Writes `transforms_train.json`, `transforms_test.json` (when test
     /// frames were written) and `scene.json` (when given), each atomically.
     /// Frame order is by index. Fails if no training frame was written or if
-    /// a mask value exceeds the scene's object count.
+    /// a mask value names no object of the scene (and is not its declared
+    /// [`SceneInfo::other_objects_mask_value`]).
     pub fn finish(self, scene: Option<&SceneInfo>) -> Result<PathBuf, CaptureError> {
         let st = self.state.into_inner().unwrap_or_else(|e| e.into_inner());
         let Some((w, h, _)) = st.size else {
@@ -896,13 +928,18 @@ impl CaptureWriter {
         }
         if let Some(scene) = scene {
             let p = self.dir.join(SCENE_FILE);
-            if usize::from(st.max_mask_value) > scene.objects.len() {
+            let written = |v: u8| st.mask_values[usize::from(v / 64)] & (1 << (v % 64)) != 0;
+            if let Some(v) = (0..=u8::MAX).find(|&v| written(v) && !scene.mask_value_allowed(v)) {
                 return Err(CaptureError::Invalid {
                     path: p,
                     what: format!(
-                        "masks use value {} but the scene has {} objects",
-                        st.max_mask_value,
-                        scene.objects.len()
+                        "masks use value {v} but the scene has {} objects{}",
+                        scene.objects.len(),
+                        scene
+                            .other_objects_mask_value
+                            .map_or_else(String::new, |o| format!(
+                                " (and other objects' value {o})"
+                            ))
                     ),
                 });
             }
@@ -1001,6 +1038,50 @@ mod tests {
         assert!((k.fx - c1.intrinsics.fx).abs() < 1e-3 && (k.cx - c1.intrinsics.cx).abs() < 1e-3);
         assert!((c.train[0].camera.intrinsics.fx - c0.intrinsics.fx).abs() < 1e-3);
         assert!(c.has_masks());
+    }
+
+    #[test]
+    fn the_other_objects_mask_value_is_accepted_only_when_declared() {
+        let one = || {
+            SceneInfo::new(vec![ObjectInfo {
+                name: "a".into(),
+                kind: "ball".into(),
+                mask_value: 1,
+                placement: Placement::default(),
+                bounds_min: [-1.0; 3],
+                bounds_max: [1.0; 3],
+                complexity_quads: None,
+                texture_frequency: None,
+                extra: Default::default(),
+            }])
+        };
+        let mut bad = one();
+        bad.other_objects_mask_value = Some(1);
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .contains("other_objects_mask_value"));
+        // A mask with 0, the object (1) and another object (255).
+        let img = RgbaImage::new(4, 1);
+        let mask = GrayImage::from_raw(4, 1, vec![0, 1, 255, 1]).unwrap();
+        let write = |scene: &SceneInfo| {
+            let dir = tempfile::tempdir().unwrap();
+            let w = CaptureWriter::create(dir.path(), 0.69).unwrap();
+            w.write_frame(Split::Train, 0, "r_0", &cam(4, 1), &img, Some(&mask))
+                .unwrap();
+            w.finish(Some(scene)).map(|_| dir)
+        };
+        let e = write(&one()).unwrap_err().to_string();
+        assert!(e.contains("value 255") && e.contains("1 objects"), "{e}");
+        let mut declared = one();
+        declared.other_objects_mask_value = Some(OTHER_OBJECTS_MASK_VALUE);
+        let dir = write(&declared).unwrap();
+        let c = Capture::load(dir.path()).unwrap();
+        assert_eq!(c.train[0].mask.as_ref(), Some(&mask));
+        // The same folder without the declaration is refused on load.
+        one().write(&dir.path().join(SCENE_FILE)).unwrap();
+        let e = Capture::load(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("mask value 255"), "{e}");
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! Segmentation on a ray-cast capture of textured spheres whose detail is
 //! known (stripe count), with exact 3-D geometry to check the enlarged views.
 
-use nerflex_sim::camera::Transforms;
+use nerflex_sim::camera::{Intrinsics, Transforms};
 use nerflex_sim::segment::compose::resize_capture;
 use nerflex_sim::segment::input::read_rgba;
 use nerflex_sim::segment::testscene::{render_view, ring_of_five, sphere_capture};
@@ -79,12 +79,45 @@ fn segment_writes_training_sets_that_match_the_geometry() {
         assert_eq!(t.frames.len(), seg.groups[o.group].train_frames);
         assert!(seg.groups[o.group].mean_zoom > 1.5);
         let sphere = spheres.iter().find(|s| s.name == o.name).unwrap().clone();
+        let label = spheres.iter().position(|s| s.name == o.name).unwrap() as u8 + 1;
+        let (mut hidden, mut hidden_marked) = (0u32, 0u32);
         for (i, f) in t.frames.iter().enumerate() {
             assert!(f.fl_x.is_some() && f.cx.is_some());
             let img = read_rgba(&dir.join(format!("{}.png", f.file_path))).unwrap();
             assert_eq!(img.dimensions(), (240, 240));
+            let mask = image::open(dir.join(format!("{}_mask.png", f.file_path)))
+                .unwrap()
+                .to_luma8();
             let cam = t.camera(i, 240, 240).unwrap();
+            let base = Intrinsics::from_fov_x(t.camera_angle_x as f32, 240, 240);
+            let zoom = f64::from(cam.intrinsics.fx / base.fx);
             let (truth, tmask) = render_view(std::slice::from_ref(&sphere), &cam);
+            // Where a nearer sphere hides this one, the mask says "another
+            // object" (255), not background; elsewhere it never says so
+            // unless another sphere is there or within a pixel or two.
+            let (_, all) = render_view(&spheres, &cam);
+            for (x, y, m) in mask.enumerate_pixels() {
+                let (a, t) = (all.get_pixel(x, y)[0], tmask.get_pixel(x, y)[0]);
+                // (Pixels the resampled silhouette still claims, at its
+                // edge, are the object's, not hidden.)
+                if t == 1 && a != label && a != 0 && m[0] != 1 {
+                    hidden += 1;
+                    hidden_marked += u32::from(m[0] == 255);
+                }
+                if m[0] == 255 {
+                    // One source pixel (grown by one) is `zoom` pixels here.
+                    let r = (3.0 * zoom).ceil() as i64 + 1;
+                    let near_other = (-r..=r).any(|dy| {
+                        (-r..=r).any(|dx| {
+                            let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                            (0..240).contains(&nx)
+                                && (0..240).contains(&ny)
+                                && ![0, label].contains(&all.get_pixel(nx as u32, ny as u32)[0])
+                        })
+                    });
+                    assert!(near_other, "{} {}: 255 at ({x}, {y})", o.name, f.file_path);
+                }
+            }
             let (mut inter, mut union, mut diff, mut n) = (0u32, 0u32, 0.0f64, 0u32);
             for (x, y, p) in img.enumerate_pixels() {
                 let a = p[3] > 0;
@@ -117,6 +150,15 @@ fn segment_writes_training_sets_that_match_the_geometry() {
                 f.file_path
             );
         }
+        eprintln!(
+            "{}: {hidden_marked} of {hidden} hidden pixels marked",
+            o.name
+        );
+        assert!(
+            hidden_marked as f64 >= 0.98 * hidden as f64,
+            "{}: {hidden_marked} of {hidden} hidden pixels marked",
+            o.name
+        );
     }
 
     // The shared views are the originals with the dedicated objects removed.
@@ -129,12 +171,22 @@ fn segment_writes_training_sets_that_match_the_geometry() {
             .find(|s| s.file_path == f.file_path)
             .unwrap();
         let img = read_rgba(&dir.join(format!("{}.png", f.file_path))).unwrap();
+        let mask = image::open(dir.join(format!("{}_mask.png", f.file_path)))
+            .unwrap()
+            .to_luma8();
         for (x, y, p) in img.enumerate_pixels() {
             let label = src.mask.get_pixel(x, y)[0];
             if label == 1 || label == 2 {
                 assert_eq!(p, src.image.get_pixel(x, y));
             } else {
                 assert_eq!(p[3], 0);
+            }
+            // The dedicated spheres' pixels are marked, the background not.
+            let m = mask.get_pixel(x, y)[0];
+            match label {
+                0 => assert_eq!(m, 0),
+                1 | 2 => assert_eq!(m, label),
+                _ => assert_eq!(m, 255),
             }
         }
     }
@@ -207,8 +259,22 @@ fn written_folders_load_back_as_captures_with_their_masks() {
     assert_eq!(info.objects.len(), 1);
     assert_eq!(info.objects[0].mask_value, 1);
     assert_eq!(info.objects[0].bounds_min, src.bounds_min);
+    // Its masks hold 1 (the object), 0 and the declared value 255 (where
+    // the other spheres hid it).
+    assert_eq!(info.other_objects_mask_value, Some(255));
     assert!(one
         .train
         .iter()
-        .all(|f| f.mask.as_raw().iter().all(|&v| v <= 1)));
+        .all(|f| f.mask.as_raw().iter().all(|&v| v <= 1 || v == 255)));
+    assert!(one.train.iter().any(|f| f.mask.as_raw().contains(&255)));
+    // Segmenting that folder again keeps the marks (the other objects are
+    // still outside it).
+    let again = tempfile::tempdir().unwrap();
+    let seg2 = segment(&one, &SegmentOptions::default(), again.path()).unwrap();
+    let back2 = SegCapture::load(&again.path().join(&seg2.groups[0].folder)).unwrap();
+    assert_eq!(
+        back2.scene.as_ref().unwrap().other_objects_mask_value,
+        Some(255)
+    );
+    assert!(back2.train.iter().any(|f| f.mask.as_raw().contains(&255)));
 }

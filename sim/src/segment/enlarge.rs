@@ -12,6 +12,7 @@
 
 use super::frequency::{mask_bbox, PixelBox};
 use crate::camera::{Camera, Intrinsics};
+use crate::capture::OTHER_OBJECTS_MASK_VALUE;
 use image::{imageops, imageops::FilterType, GrayImage, Luma, Rgba, Rgba32FImage, RgbaImage};
 
 /// Settings of the enlargement.
@@ -40,7 +41,12 @@ pub struct Enlarged {
     /// Full-size image; alpha is the object's own coverage (other objects
     /// and the background are transparent).
     pub image: RgbaImage,
-    /// The object's mask at full size: 1 on the object, 0 elsewhere.
+    /// The object's mask at full size: 1 on the object (coverage ≥ ½),
+    /// [`OTHER_OBJECTS_MASK_VALUE`] where another object of the source mask
+    /// covers the view instead (nearest neighbour, grown by one source pixel
+    /// so the resampled silhouette's edge never leaves a gap), 0 elsewhere.
+    /// The other objects are transparent in `image` all the same; the mark
+    /// tells the baker that the object may continue behind them.
     pub mask: GrayImage,
     /// The camera that sees this image: same pose, cropped intrinsics.
     pub camera: Camera,
@@ -167,6 +173,7 @@ pub fn enlarge_within(
             m[0] = u8::from(p[3] >= 0.5);
         }
     }
+    mark_other_objects(&mut mask_out, mask, label, crop, region);
     let k = camera.intrinsics;
     let intrinsics: Intrinsics = k.cropped(
         crop.x0 as f32,
@@ -191,6 +198,49 @@ pub fn enlarge_within(
     })
 }
 
+/// Marks [`OTHER_OBJECTS_MASK_VALUE`] on the pixels of `out` (the enlarged
+/// view of `crop`) that are not the object and whose source pixel, or one of
+/// its 8 neighbours inside `region`, shows another object (a nonzero label
+/// other than `label`). The source pixel of output pixel i is the one under
+/// its centre, crop.x0 + ⌊(i + ½)·crop_w / out_w⌋ (the resampler's map).
+fn mark_other_objects(
+    out: &mut GrayImage,
+    src: &GrayImage,
+    label: u8,
+    crop: PixelBox,
+    region: PixelBox,
+) {
+    let (w, h) = out.dimensions();
+    let (cw, ch) = (u64::from(crop.width()), u64::from(crop.height()));
+    let other = |x: u32, y: u32| {
+        let v = src.get_pixel(x, y)[0];
+        v != 0 && v != label
+    };
+    // Source rows/columns hit by the output's, and whether a 3×3
+    // neighbourhood there shows another object (computed once per source
+    // pixel of the crop).
+    let sx: Vec<u32> = (0..u64::from(w))
+        .map(|i| crop.x0 + ((2 * i + 1) * cw / (2 * u64::from(w))) as u32)
+        .collect();
+    let sy: Vec<u32> = (0..u64::from(h))
+        .map(|j| crop.y0 + ((2 * j + 1) * ch / (2 * u64::from(h))) as u32)
+        .collect();
+    let near = GrayImage::from_fn(crop.width(), crop.height(), |x, y| {
+        let (x, y) = (crop.x0 + x, crop.y0 + y);
+        let xs = x.saturating_sub(1).max(region.x0)..=(x + 1).min(region.x1 - 1);
+        let found = xs.clone().any(|nx| {
+            (y.saturating_sub(1).max(region.y0)..=(y + 1).min(region.y1 - 1))
+                .any(|ny| other(nx, ny))
+        });
+        image::Luma([u8::from(found)])
+    });
+    for (x, y, m) in out.enumerate_pixels_mut() {
+        if m[0] == 0 && near.get_pixel(sx[x as usize] - crop.x0, sy[y as usize] - crop.y0)[0] == 1 {
+            m[0] = OTHER_OBJECTS_MASK_VALUE;
+        }
+    }
+}
+
 fn unpremultiply(p: &Rgba<f32>) -> Rgba<u8> {
     let a = p[3].clamp(0.0, 1.0);
     if a < 0.5 / 255.0 {
@@ -201,7 +251,9 @@ fn unpremultiply(p: &Rgba<f32>) -> Rgba<u8> {
 }
 
 /// `image` with every pixel whose mask label is not kept made transparent,
-/// and its mask relabelled through `relabel` (0 = drop). Used for the shared
+/// and its mask relabelled through `relabel` (0 = drop): a dropped object's
+/// pixels get [`OTHER_OBJECTS_MASK_VALUE`] (so the baker knows something
+/// hid the kept objects there), background stays 0. Used for the shared
 /// group: the original view with the dedicated objects removed.
 pub fn isolate(
     image: &RgbaImage,
@@ -209,13 +261,16 @@ pub fn isolate(
     relabel: impl Fn(u8) -> u8,
 ) -> (RgbaImage, GrayImage) {
     let new_mask = GrayImage::from_fn(mask.width(), mask.height(), |x, y| {
-        Luma([relabel(mask.get_pixel(x, y)[0])])
+        let l = mask.get_pixel(x, y)[0];
+        Luma([match relabel(l) {
+            0 if l != 0 => OTHER_OBJECTS_MASK_VALUE,
+            v => v,
+        }])
     });
     let out = RgbaImage::from_fn(image.width(), image.height(), |x, y| {
-        if new_mask.get_pixel(x, y)[0] == 0 {
-            Rgba([0; 4])
-        } else {
-            *image.get_pixel(x, y)
+        match new_mask.get_pixel(x, y)[0] {
+            0 | OTHER_OBJECTS_MASK_VALUE => Rgba([0; 4]),
+            _ => *image.get_pixel(x, y),
         }
     });
     (out, new_mask)
@@ -437,7 +492,7 @@ mod tests {
         let img = RgbaImage::from_pixel(4, 1, Rgba([9, 9, 9, 255]));
         let mask = GrayImage::from_raw(4, 1, vec![0, 1, 2, 3]).unwrap();
         let (out, m) = isolate(&img, &mask, |l| if l == 3 { 1 } else { 0 });
-        assert_eq!(m.as_raw(), &vec![0, 0, 0, 1]);
+        assert_eq!(m.as_raw(), &vec![0, 255, 255, 1]);
         assert_eq!(out.get_pixel(2, 0)[3], 0);
         assert_eq!(out.get_pixel(3, 0)[3], 255);
     }

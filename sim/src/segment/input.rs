@@ -159,7 +159,11 @@ impl SegCapture {
                     self.objects.len()
                 ));
             }
-            if let Some(&l) = f.mask.as_raw().iter().max() {
+            // The value a group folder's scene.json declares for objects
+            // outside it names none of the objects here.
+            let others = self.scene.as_ref().and_then(|s| s.other_objects_mask_value);
+            let named = f.mask.as_raw().iter().filter(|&&l| Some(l) != others).max();
+            if let Some(&l) = named {
                 if l as usize > self.objects.len() {
                     return bad(format!(
                         "{}: mask label {l} but only {} object(s) are named",

@@ -6,7 +6,7 @@ use super::enlarge::{enlarge_within, isolate, EnlargeOptions};
 use super::frequency::FrequencyOptions;
 use super::input::{SegCapture, SegFrame, SegmentError};
 use crate::camera::Camera;
-use crate::capture::{CaptureWriter, Split};
+use crate::capture::{CaptureWriter, Split, OTHER_OBJECTS_MASK_VALUE};
 use image::{imageops, GrayImage, RgbaImage};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -93,7 +93,9 @@ pub struct GroupView {
     pub file_path: String,
     /// The image: enlarged (dedicated) or with other objects removed (shared).
     pub image: RgbaImage,
-    /// The group's instance mask (label i + 1 = the group's i-th object).
+    /// The group's instance mask (label i + 1 = the group's i-th object,
+    /// [`OTHER_OBJECTS_MASK_VALUE`] where an object outside the group
+    /// covers the view, 0 elsewhere).
     pub mask: GrayImage,
     /// The camera that sees `image`.
     pub camera: Camera,
@@ -154,7 +156,11 @@ pub fn group_view(
                 )));
             }
             let (image, mask) = isolate(&frame.image, &frame.mask, relabel);
-            if mask.as_raw().iter().all(|&v| v == 0) {
+            if mask
+                .as_raw()
+                .iter()
+                .all(|&v| v == 0 || v == OTHER_OBJECTS_MASK_VALUE)
+            {
                 return Ok(None);
             }
             // A composite's objects keep only their own part of the canvas.
@@ -529,6 +535,14 @@ fn write_group_into(
     tmp_dir: &Path,
 ) -> Result<GroupRecord, SegmentError> {
     let writer = CaptureWriter::create(tmp_dir, cap.camera_angle_x)?;
+    // Where objects outside the group hid it is recorded only when the
+    // folder gets a scene.json declaring the value (without one, a mask
+    // value names an object), and only if there are such objects: some
+    // outside the group, or outside the source folder itself (a group
+    // folder segmented again).
+    let mark_others = cap.scene.as_ref().is_some_and(|s| {
+        group.objects.len() < s.objects.len() || s.other_objects_mask_value.is_some()
+    });
     let size: Mutex<Option<(u32, u32, String)>> = Mutex::new(None);
     let mut counts = [0usize; 2];
     let mut zoom_sum = 0.0;
@@ -538,9 +552,16 @@ fn write_group_into(
             .par_iter()
             .enumerate()
             .map(|(index, f)| -> Result<usize, SegmentError> {
-                let Some(v) = group_view(f, group, opts)? else {
+                let Some(mut v) = group_view(f, group, opts)? else {
                     return Ok(0);
                 };
+                if !mark_others {
+                    for m in v.mask.iter_mut() {
+                        if *m == OTHER_OBJECTS_MASK_VALUE {
+                            *m = 0;
+                        }
+                    }
+                }
                 {
                     let mut s = size.lock().unwrap_or_else(|e| e.into_inner());
                     let (w, h) = v.image.dimensions();
@@ -586,6 +607,7 @@ fn write_group_into(
                 })
             })
             .collect();
+        g.other_objects_mask_value = mark_others.then_some(OTHER_OBJECTS_MASK_VALUE);
         g
     });
     writer.finish(scene.as_ref())?;
