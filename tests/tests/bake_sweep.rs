@@ -183,19 +183,24 @@ fn sweep_rejects_duplicate_and_unwritable_names() {
     assert!(e.contains("CSV"), "{e}");
 }
 
-#[test]
-fn monotonicity_report_names_the_breaks() {
-    let s = |g, p, gpu, ssim| Sample {
+/// A sample of object "x" whose file and GPU bytes are both `bytes`.
+fn sample(g: u32, p: u32, bytes: u64, ssim: f64) -> Sample {
+    Sample {
         object: "x".into(),
         g,
         p,
-        size_bytes: gpu,
-        gpu_bytes: gpu,
+        size_bytes: bytes,
+        gpu_bytes: bytes,
         quads: 1,
         ssim,
         psnr: 0.0,
         lpips: None,
-    };
+    }
+}
+
+#[test]
+fn monotonicity_report_names_the_breaks() {
+    let s = sample;
     let samples = vec![
         s(16, 5, 100, 0.70),
         s(16, 9, 200, 0.72),
@@ -217,17 +222,7 @@ fn monotonicity_report_names_the_breaks() {
 
 #[test]
 fn monotonicity_summary_counts_pairs_and_the_largest_drop() {
-    let s = |g, p, gpu, ssim| Sample {
-        object: "x".into(),
-        g,
-        p,
-        size_bytes: gpu,
-        gpu_bytes: gpu,
-        quads: 1,
-        ssim,
-        psnr: 0.0,
-        lpips: None,
-    };
+    let s = sample;
     let samples = vec![
         s(16, 5, 100, 0.70),
         s(16, 9, 200, 0.72),
