@@ -286,10 +286,15 @@ impl View {
             return Err(RasterError::BadView("camera-to-world is not invertible"));
         }
         let m = w2c.to_cols_array_2d();
-        let row = |r: usize| [m[0][r], m[1][r], m[2][r], m[3][r]];
+        // Checked access: `r`, `c`, `k` are constants below 4, but no
+        // indexing in the core may be able to panic.
+        let at = |a: &[[f32; 4]; 4], c: usize, k: usize| {
+            a.get(c).and_then(|col| col.get(k)).copied().unwrap_or(0.0)
+        };
+        let row = |r: usize| [at(&m, 0, r), at(&m, 1, r), at(&m, 2, r), at(&m, 3, r)];
         // World ray of pixel centre (px + ½, py + ½): R·((px+½−cx)/fx, −(py+½−cy)/fy, −1).
         let (fx64, fy64) = (fx as f64, fy as f64);
-        let r = |c: usize, k: usize| cols[c][k] as f64;
+        let r = |c: usize, k: usize| at(&cols, c, k) as f64;
         let q30 = |v: f64| libm::round(v * (1u64 << 30) as f64) as i64;
         let a = (0.5 - cx as f64) / fx64;
         let b = -(0.5 - cy as f64) / fy64;
