@@ -125,6 +125,7 @@ fn tiny_scene_end_to_end() {
         device: device.name.clone(),
         plan: dp.clone(),
         plan_s: 0.0,
+        replans: 0,
         realised,
         simulation: sim.clone(),
         timings: prepared.timings,

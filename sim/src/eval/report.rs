@@ -96,6 +96,15 @@ pub fn disagreements(r: &EvalReport) -> Vec<String> {
                 )),
                 _ => {}
             }
+            if row.replans > 0 {
+                v.push(format!(
+                    "{} on {what}: the first plan baked over the {} MB budget (predicted sizes are about ±5 % off); re-planned {}× against a smaller budget, now {} MB baked",
+                    method_label(row.method),
+                    mb(row.budget_bytes),
+                    row.replans,
+                    mb(row.file_bytes)
+                ));
+            }
             if matches!(row.method, Method::Slsqp | Method::Fairness) {
                 if let (Some(q), Some(dp)) = (
                     row.quality,

@@ -2,8 +2,9 @@
 
 use super::bakes::BakeStore;
 use super::stages::{
-    self, baseline_plan, plan_for, realise, simulate_on, Input, Options, Prepared, Progress,
-    Realised, RealisedObject, SceneQuality, Timings,
+    self, baseline_plan, is_planner, next_budget, plan_for, plan_within, realise, simulate_on,
+    Input, Options, Prepared, Progress, Realised, RealisedObject, SceneQuality, Timings,
+    MAX_REPLANS,
 };
 use crate::baselines::{Method, Plan};
 use crate::device::Device;
@@ -23,8 +24,11 @@ pub struct RunResult {
     pub device: String,
     /// The plan.
     pub plan: Plan,
-    /// Seconds the planner took.
+    /// Seconds the planner took (all re-plans included).
     pub plan_s: f64,
+    /// Re-plans because the baked bytes exceeded the device's budget
+    /// (the last plan's `budget_bytes` is then below the device's).
+    pub replans: u32,
     /// The realised scene.
     pub realised: Realised,
     /// The simulation.
@@ -51,8 +55,23 @@ pub fn run_one(
     progress: &dyn Progress,
 ) -> anyhow::Result<RunResult> {
     let prepared = stages::prepare(input, opts, out, lpips, progress)?;
-    let (plan, plan_s) = method_plan(&prepared, method, device, opts, lpips, progress)?;
-    let realised = realise(&prepared, &plan, opts, lpips, progress)?;
+    let (mut plan, mut plan_s) = method_plan(&prepared, method, device, opts, lpips, progress)?;
+    let mut realised = realise(&prepared, &plan, opts, lpips, progress)?;
+    let mut replans = 0;
+    while is_planner(method) && replans < MAX_REPLANS {
+        let Some(next) = next_budget(
+            device.budget(),
+            Bytes(plan.budget_bytes),
+            Bytes(realised.file_bytes()),
+        ) else {
+            break;
+        };
+        let (p, s) = plan_within(&prepared, method, device, next)?;
+        plan = p;
+        plan_s += s;
+        realised = realise(&prepared, &plan, opts, lpips, progress)?;
+        replans += 1;
+    }
     progress.stage(&format!("simulating on {}", device.name), 1);
     let simulation = simulate_on(&realised, device, opts)?;
     progress.step("simulated");
@@ -62,6 +81,7 @@ pub fn run_one(
         device: device.name.clone(),
         plan,
         plan_s,
+        replans,
         realised,
         simulation,
         timings: prepared.timings,
@@ -123,6 +143,7 @@ struct ReportJson<'a> {
     networks: Vec<NetworkJson<'a>>,
     timings: Timings,
     plan_s: f64,
+    replans: u32,
     sample_bakes_new: usize,
     sample_bakes_reused: usize,
     budget_bytes: u64,
@@ -183,6 +204,13 @@ impl RunResult {
             Bytes(self.plan.budget_bytes).as_mb(),
             self.plan_s * 1e3
         );
+        if self.replans > 0 {
+            let _ = writeln!(
+                s,
+                "  (re-planned {}× against a smaller budget: the first plan baked over the device's budget)",
+                self.replans
+            );
+        }
         let _ = writeln!(
             s,
             "  {:<12} {:>4} {:>3} {:>9} {:>9} {:>9} {:>9}",
@@ -263,6 +291,7 @@ impl RunResult {
                 .collect(),
             timings: self.timings,
             plan_s: self.plan_s,
+            replans: self.replans,
             sample_bakes_new: self.sample_bakes.0,
             sample_bakes_reused: self.sample_bakes.1,
             budget_bytes: self.plan.budget_bytes,
