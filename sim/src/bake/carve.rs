@@ -197,24 +197,47 @@ impl Silhouettes {
         let min_seen = self.len().div_ceil(2).max(1);
         let mut seen = 0;
         for (p, t) in self.projs.iter().zip(&self.tables) {
-            let c = p.w2c.transform_point3(x);
-            let depth = -c.z;
-            if depth <= 1e-4 {
-                continue;
+            match point_in_view(p, t, x) {
+                PointInView::Background => return false,
+                PointInView::Counts => seen += 1,
+                PointInView::Silent => {}
             }
-            let px = p.cx + p.fx * c.x / depth;
-            let py = p.cy - p.fy * c.y / depth;
-            if !(px >= 0.0 && py >= 0.0 && px < p.width && py < p.height) {
-                continue;
-            }
-            let i = py as usize * t.width as usize + px as usize;
-            // Another object's pixel: in frame, but says nothing.
-            if !t.fg[i] && !t.is_unknown(i) {
-                return false;
-            }
-            seen += 1;
         }
         seen >= min_seen
+    }
+}
+
+/// What one view says about a point.
+enum PointInView {
+    /// Behind the camera or out of frame: nothing.
+    Silent,
+    /// In frame on background: the point is outside the hull.
+    Background,
+    /// In frame on the silhouette or on another object's pixel (unknown):
+    /// the view has the point in frame and does not carve it.
+    Counts,
+}
+
+/// The one projection-and-lookup of a point in a view, shared by
+/// [`Silhouettes::inside`] and `inside_views`.
+#[inline]
+fn point_in_view(p: &Proj, t: &SummedArea, x: Vec3) -> PointInView {
+    let c = p.w2c.transform_point3(x);
+    let depth = -c.z;
+    if depth <= 1e-4 {
+        return PointInView::Silent;
+    }
+    let px = p.cx + p.fx * c.x / depth;
+    let py = p.cy - p.fy * c.y / depth;
+    if !(px >= 0.0 && py >= 0.0 && px < p.width && py < p.height) {
+        return PointInView::Silent;
+    }
+    let i = py as usize * t.width as usize + px as usize;
+    // Another object's pixel: in frame, but says nothing.
+    if !t.fg[i] && !t.is_unknown(i) {
+        PointInView::Background
+    } else {
+        PointInView::Counts
     }
 }
 
@@ -226,22 +249,11 @@ impl Silhouettes {
         let mut seen = known_seen;
         for &vi in views {
             let (p, t) = (&self.projs[vi], &self.tables[vi]);
-            let c = p.w2c.transform_point3(x);
-            let depth = -c.z;
-            if depth <= 1e-4 {
-                continue;
+            match point_in_view(p, t, x) {
+                PointInView::Background => return false,
+                PointInView::Counts => seen += 1,
+                PointInView::Silent => {}
             }
-            let px = p.cx + p.fx * c.x / depth;
-            let py = p.cy - p.fy * c.y / depth;
-            if !(px >= 0.0 && py >= 0.0 && px < p.width && py < p.height) {
-                continue;
-            }
-            let i = py as usize * t.width as usize + px as usize;
-            // Another object's pixel: in frame, but says nothing.
-            if !t.fg[i] && !t.is_unknown(i) {
-                return false;
-            }
-            seen += 1;
         }
         seen >= min_seen
     }
