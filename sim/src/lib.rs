@@ -23,3 +23,4 @@ pub mod render;
 pub mod scene_file;
 pub mod segment;
 pub mod simulate;
+pub mod train;
