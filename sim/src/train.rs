@@ -5,3 +5,9 @@
 //! world point); the trainer that produces one lives beside it.
 
 pub mod field;
+pub mod adam;
+pub mod grid;
+pub mod march;
+pub mod pixels;
+pub mod sh;
+pub mod trainer;
