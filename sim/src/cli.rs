@@ -11,3 +11,4 @@ pub mod run;
 pub mod scene;
 pub mod segment;
 pub mod simulate;
+pub mod train;

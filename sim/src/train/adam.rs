@@ -16,6 +16,9 @@ pub struct Adam {
     pub betas: (f32, f32),
     /// ε.
     pub eps: f32,
+    /// Update every slot each step (moments carry on without a
+    /// gradient), not only the touched ones.
+    pub dense: bool,
 }
 
 impl Adam {
@@ -27,6 +30,7 @@ impl Adam {
             step: 0,
             betas: (0.9, 0.99),
             eps: 1e-8,
+            dense: std::env::var_os("NERFLEX_DENSE_ADAM").is_some(),
         }
     }
 
@@ -46,6 +50,7 @@ impl Adam {
         let bc1 = 1.0 - b1.powi(self.step as i32);
         let bc2 = 1.0 - b2.powi(self.step as i32);
         let eps = self.eps;
+        let dense = self.dense;
         let shared: &[GradBuf] = grads;
         // Dense walk over slots, but a touched-flag test is all an
         // untouched slot costs (one byte per worker).
@@ -56,7 +61,7 @@ impl Adam {
             .enumerate()
             .with_min_len(4096)
             .for_each(|(s, ((val, m), v))| {
-                if !shared.iter().any(|g| g.mark[s]) {
+                if !dense && !shared.iter().any(|g| g.mark[s]) {
                     return;
                 }
                 for i in 0..len {
@@ -98,7 +103,9 @@ mod tests {
                 }
             }
             adam.step(&mut values, len, &mut bufs, 0.05, 0.05);
-            assert!(bufs.iter().all(|b| b.touched.is_empty() && b.grad.iter().all(|&g| g == 0.0)));
+            assert!(bufs
+                .iter()
+                .all(|b| b.touched.is_empty() && b.grad.iter().all(|&g| g == 0.0)));
         }
         // Minimum of Σ_w (x − (w + i))² is the mean, i + 0.5.
         assert!((values[0] - 0.5).abs() < 1e-2, "{values:?}");

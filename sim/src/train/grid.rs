@@ -4,9 +4,10 @@
 //! Values live on the vertices of an `R`³-cell lattice over a cube. Only the
 //! vertices near the object are stored: `index` maps every lattice vertex to
 //! a slot of `values` (`EMPTY` where nothing is stored, read as all zeros).
-//! A slot holds one record of `1 + 3·K` floats — raw density, then the `K`
-//! SH coefficients of red, green and blue — contiguous, so the eight
-//! corner gathers of a sample touch eight short runs of memory.
+//! A slot holds one record — raw density, then the `K` SH coefficients of
+//! red, green and blue, padded with zeros to 4, 16 or 32 floats (degree 0,
+//! 1, 2) — so a degree-1 record is one 64-byte cache line and the eight
+//! corner gathers of a sample touch eight lines.
 
 use glam::Vec3;
 
@@ -14,8 +15,8 @@ use super::field::RadianceField;
 use super::sh;
 use crate::bake::Aabb;
 
-/// Longest record (SH degree 2).
-pub const MAX_RECORD: usize = 1 + 3 * sh::MAX_COUNT;
+/// Longest record (SH degree 2, padded).
+pub const MAX_RECORD: usize = 32;
 
 /// Index value of a vertex that stores nothing.
 pub const EMPTY: u32 = u32::MAX;
@@ -59,12 +60,7 @@ pub struct Corners {
 impl SparseGrid {
     /// A grid over `cube` with `res` cells per edge storing the vertices
     /// for which `keep(i, j, k)` holds, all records zero.
-    pub fn new(
-        res: u32,
-        cube: Aabb,
-        sh_degree: u32,
-        keep: impl Fn(u32, u32, u32) -> bool,
-    ) -> Self {
+    pub fn new(res: u32, cube: Aabb, sh_degree: u32, keep: impl Fn(u32, u32, u32) -> bool) -> Self {
         let n = res + 1;
         let mut index = vec![EMPTY; (n as usize).pow(3)];
         let mut vertex = Vec::new();
@@ -93,7 +89,7 @@ impl SparseGrid {
         grid
     }
 
-    /// Floats per record.
+    /// Floats per (padded) record.
     #[inline]
     pub fn record_len(&self) -> usize {
         record_len(self.sh_degree)
@@ -163,7 +159,7 @@ impl SparseGrid {
 
     /// The corners of the sample at grid coordinates `u`, or `None` when
     /// `u` is outside the grid or its cell stores nothing.
-    #[inline]
+    #[inline(always)]
     pub fn corners(&self, u: Vec3) -> Option<Corners> {
         let r = self.res as f32;
         if !(u.x >= 0.0 && u.y >= 0.0 && u.z >= 0.0 && u.x <= r && u.y <= r && u.z <= r) {
@@ -177,7 +173,11 @@ impl SparseGrid {
         );
         let res = self.res as usize;
         let c = (k as usize * res + j as usize) * res + i as usize;
-        if self.cell_bits.get(c / 64).is_none_or(|b| b & (1 << (c % 64)) == 0) {
+        if self
+            .cell_bits
+            .get(c / 64)
+            .is_none_or(|b| b & (1 << (c % 64)) == 0)
+        {
             return None;
         }
         let (fx, fy, fz) = (u.x - i as f32, u.y - j as f32, u.z - k as f32);
@@ -193,6 +193,23 @@ impl SparseGrid {
             out.weight[c] = wx[c & 1] * wy[(c >> 1) & 1] * wz[c >> 2];
         }
         Some(out)
+    }
+
+    /// The interpolated record at the corners, for a record length known
+    /// at compile time (the hot path).
+    #[inline(always)]
+    pub fn gather<const S: usize>(&self, corners: &Corners) -> [f32; S] {
+        let (recs, _) = self.values.as_chunks::<S>();
+        let mut out = [0.0; S];
+        for c in 0..8 {
+            if let Some(rec) = recs.get(corners.slot[c] as usize) {
+                let w = corners.weight[c];
+                for i in 0..S {
+                    out[i] += w * rec[i];
+                }
+            }
+        }
+        out
     }
 
     /// The interpolated record at the corners into `out` (`record_len()`).
@@ -214,10 +231,14 @@ impl SparseGrid {
     }
 }
 
-/// Floats per record of an SH degree.
+/// Floats per (padded) record of an SH degree: 4, 16 or 32.
 #[inline]
 pub fn record_len(sh_degree: u32) -> usize {
-    1 + 3 * sh::count(sh_degree)
+    match sh_degree {
+        0 => 4,
+        1 => 16,
+        _ => 32,
+    }
 }
 
 /// The density activation: softplus(raw − SHIFT) and its derivative.

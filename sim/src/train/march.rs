@@ -14,7 +14,7 @@
 
 use glam::Vec3;
 
-use super::grid::{activate_density, sigmoid, Corners, SparseGrid, EMPTY, MAX_RECORD};
+use super::grid::{activate_density, sigmoid, Corners, SparseGrid};
 use super::sh;
 
 /// Transmittance below which a ray stops (what is behind is invisible).
@@ -124,23 +124,55 @@ impl MarchBox {
 }
 
 /// Shades one sample from its interpolated record: (τ, ∂τ/∂raw, rgb).
-#[inline]
-fn shade(rec: &[f32], k: usize, basis: &[f32], tau_scale: f32) -> (f32, f32, [f32; 3]) {
+#[inline(always)]
+fn shade<const S: usize, const K: usize>(
+    rec: &[f32; S],
+    basis: &[f32; K],
+    tau_scale: f32,
+) -> (f32, f32, [f32; 3]) {
     let (sigma, dsigma) = activate_density(rec[0]);
     let mut rgb = [0.0f32; 3];
     for (ch, out) in rgb.iter_mut().enumerate() {
-        let coeffs = &rec[1 + ch * k..1 + (ch + 1) * k];
         let mut s = 0.0;
-        for (c, b) in coeffs.iter().zip(basis) {
-            s += c * b;
+        for k in 0..K {
+            s += rec[1 + ch * K + k] * basis[k];
         }
         *out = sigmoid(s);
     }
     (sigma * tau_scale, dsigma * tau_scale, rgb)
 }
 
+/// The basis of a ray's direction, `K` values.
+#[inline(always)]
+fn basis_of<const K: usize>(degree: u32, dir: Vec3) -> [f32; K] {
+    let mut all = [0.0; sh::MAX_COUNT];
+    sh::eval(degree, dir, &mut all);
+    std::array::from_fn(|k| all[k])
+}
+
+/// Runs `$body` with `S` (record length) and `K` (SH count) as constants
+/// for the grid's degree.
+macro_rules! with_layout {
+    ($grid:expr, $f:ident ( $($arg:expr),* )) => {
+        match $grid.sh_degree {
+            0 => $f::<4, 1>($($arg),*),
+            1 => $f::<16, 4>($($arg),*),
+            _ => $f::<32, 9>($($arg),*),
+        }
+    };
+}
+
 /// Renders one ray (no gradients): evaluation and previews.
 pub fn render_ray(grid: &SparseGrid, bx: &MarchBox, ray: &GridRay, p: &MarchParams) -> RayOut {
+    with_layout!(grid, render_ray_k(grid, bx, ray, p))
+}
+
+fn render_ray_k<const S: usize, const K: usize>(
+    grid: &SparseGrid,
+    bx: &MarchBox,
+    ray: &GridRay,
+    p: &MarchParams,
+) -> RayOut {
     let mut out = RayOut {
         rgb: p.background,
         transmittance: 1.0,
@@ -149,12 +181,8 @@ pub fn render_ray(grid: &SparseGrid, bx: &MarchBox, ray: &GridRay, p: &MarchPara
     let Some((t0, t1)) = ray.clip(bx.lo, bx.hi) else {
         return out;
     };
-    let k = grid.sh_count();
-    let len = grid.record_len();
-    let mut basis = [0.0; sh::MAX_COUNT];
-    sh::eval(grid.sh_degree, ray.dir, &mut basis);
+    let basis = basis_of::<K>(grid.sh_degree, ray.dir);
     let tau_scale = grid.density_scale() * grid.voxel() * p.step;
-    let mut rec = [0.0; MAX_RECORD];
     let mut t = t0 + ray.jitter * p.step;
     let mut trans = 1.0f32;
     let mut acc = Vec3::ZERO;
@@ -162,8 +190,8 @@ pub fn render_ray(grid: &SparseGrid, bx: &MarchBox, ray: &GridRay, p: &MarchPara
         let u = ray.origin + t * ray.dir;
         t += p.step;
         let Some(c) = grid.corners(u) else { continue };
-        grid.interpolate(&c, &mut rec[..len]);
-        let (tau, _, rgb) = shade(&rec[..len], k, &basis[..k], tau_scale);
+        let rec = grid.gather::<S>(&c);
+        let (tau, _, rgb) = shade::<S, K>(&rec, &basis, tau_scale);
         let a = 1.0 - (-tau).exp();
         acc += (trans * a) * Vec3::from_array(rgb);
         trans *= 1.0 - a;
@@ -209,23 +237,23 @@ impl GradBuf {
         self.touched.clear();
     }
 
-    #[inline]
-    fn scatter(&mut self, corners: &Corners, gv: &[f32]) {
-        let len = gv.len();
+    #[inline(always)]
+    fn scatter<const S: usize>(&mut self, corners: &Corners, gv: &[f32; S]) {
+        let (recs, _) = self.grad.as_chunks_mut::<S>();
         for c in 0..8 {
             let s = corners.slot[c];
-            if s == EMPTY {
+            let Some(g) = recs.get_mut(s as usize) else {
                 continue;
-            }
-            let su = s as usize;
-            if !self.mark[su] {
-                self.mark[su] = true;
-                self.touched.push(s);
+            };
+            if let Some(m) = self.mark.get_mut(s as usize) {
+                if !*m {
+                    *m = true;
+                    self.touched.push(s);
+                }
             }
             let w = corners.weight[c];
-            let g = &mut self.grad[su * len..(su + 1) * len];
-            for (gi, &v) in g.iter_mut().zip(gv) {
-                *gi += w * v;
+            for i in 0..S {
+                g[i] += w * gv[i];
             }
         }
     }
@@ -233,7 +261,25 @@ impl GradBuf {
 
 /// Renders one ray, compares it with `target` and adds the gradient of
 /// `loss_scale · ‖C − target‖²` to `grads`. Returns the ray's colour.
+#[allow(clippy::too_many_arguments)]
 pub fn train_ray(
+    grid: &SparseGrid,
+    bx: &MarchBox,
+    ray: &GridRay,
+    p: &MarchParams,
+    target: Vec3,
+    loss_scale: f32,
+    scratch: &mut Scratch,
+    grads: &mut GradBuf,
+) -> RayOut {
+    with_layout!(
+        grid,
+        train_ray_k(grid, bx, ray, p, target, loss_scale, scratch, grads)
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn train_ray_k<const S: usize, const K: usize>(
     grid: &SparseGrid,
     bx: &MarchBox,
     ray: &GridRay,
@@ -252,12 +298,8 @@ pub fn train_ray(
     let Some((t0, t1)) = ray.clip(bx.lo, bx.hi) else {
         return out;
     };
-    let k = grid.sh_count();
-    let len = grid.record_len();
-    let mut basis = [0.0; sh::MAX_COUNT];
-    sh::eval(grid.sh_degree, ray.dir, &mut basis);
+    let basis = basis_of::<K>(grid.sh_degree, ray.dir);
     let tau_scale = grid.density_scale() * grid.voxel() * p.step;
-    let mut rec = [0.0; MAX_RECORD];
     let mut t = t0 + ray.jitter * p.step;
     let mut trans = 1.0f32;
     let mut acc = Vec3::ZERO;
@@ -267,8 +309,8 @@ pub fn train_ray(
         let Some(corners) = grid.corners(u) else {
             continue;
         };
-        grid.interpolate(&corners, &mut rec[..len]);
-        let (tau, dtau_draw, rgb) = shade(&rec[..len], k, &basis[..k], tau_scale);
+        let rec = grid.gather::<S>(&corners);
+        let (tau, dtau_draw, rgb) = shade::<S, K>(&rec, &basis, tau_scale);
         let decay = (-tau).exp();
         let w = trans * (1.0 - decay);
         acc += w * Vec3::from_array(rgb);
@@ -292,21 +334,21 @@ pub fn train_ray(
     // Backward.
     let g_c = 2.0 * loss_scale * (total - target);
     let mut before = Vec3::ZERO; // Σ_{j≤i} wⱼ cⱼ
-    let mut gv = [0.0; MAX_RECORD];
     for s in &scratch.samples {
         let rgb = Vec3::from_array(s.rgb);
         before += s.w * rgb;
         let rest = total - before;
         let d_tau = g_c.dot(s.t_after * rgb - rest);
+        let mut gv = [0.0f32; S];
         gv[0] = d_tau * s.dtau_draw;
         for ch in 0..3 {
             let c = s.rgb[ch];
             let d_pre = s.w * g_c[ch] * c * (1.0 - c);
-            for (slot, b) in gv[1 + ch * k..1 + (ch + 1) * k].iter_mut().zip(&basis[..k]) {
-                *slot = d_pre * b;
+            for k in 0..K {
+                gv[1 + ch * K + k] = d_pre * basis[k];
             }
         }
-        grads.scatter(&s.corners, &gv[..len]);
+        grads.scatter::<S>(&s.corners, &gv);
     }
     out
 }
@@ -325,7 +367,9 @@ mod tests {
         let mut g = SparseGrid::new(3, cube, degree, |_, _, _| true);
         let mut x = seed;
         for v in g.values.iter_mut() {
-            x = x.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            x = x
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
             *v = ((x >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0;
         }
         let len = g.record_len();
@@ -367,7 +411,8 @@ mod tests {
                 a.values[i] += h;
                 let mut b = grid.clone();
                 b.values[i] -= h;
-                let fd = (loss(&a, &ray, &p, target) - loss(&b, &ray, &p, target)) / (2.0 * f64::from(h));
+                let fd = (loss(&a, &ray, &p, target) - loss(&b, &ray, &p, target))
+                    / (2.0 * f64::from(h));
                 let an = f64::from(grads.grad[i]);
                 assert!(
                     (fd - an).abs() <= 2e-3 + 2e-2 * fd.abs().max(an.abs()),

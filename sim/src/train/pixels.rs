@@ -95,33 +95,38 @@ impl PixelSet {
         self.cumulative.last().copied().unwrap_or(0)
     }
 
-    /// Draws one known pixel uniformly from the views' rectangles; `None`
-    /// when there is none (after a bounded number of tries).
-    pub fn draw(&self, rng: &mut impl Rng) -> Option<PixelRay> {
+    /// Draws a `side`×`side` patch of pixels at a uniformly random place
+    /// of the views' rectangles and appends its known pixels' rays to
+    /// `out`. Neighbouring rays cross the same cells, so a batch of patches
+    /// gathers and scatters through far fewer cache lines than as many
+    /// independent pixels (the trainer is memory-latency bound).
+    pub fn draw_patch(&self, rng: &mut impl Rng, side: u32, out: &mut Vec<PixelRay>) {
         let area = self.area();
         if area == 0 {
-            return None;
+            return;
         }
-        for _ in 0..64 {
-            let r = rng.random_range(0..area);
-            let vi = self.cumulative.partition_point(|&c| c <= r);
-            let v = self.views.get(vi)?;
-            let (x0, y0, x1, y1) = v.rect;
-            let x = rng.random_range(x0..x1);
-            let y = rng.random_range(y0..y1);
-            let n = (y * v.width + x) as usize;
-            if !v.known[n] {
-                continue;
+        let r = rng.random_range(0..area);
+        let vi = self.cumulative.partition_point(|&c| c <= r);
+        let Some(v) = self.views.get(vi) else { return };
+        let (x0, y0, x1, y1) = v.rect;
+        let x = rng.random_range(x0..x1);
+        let y = rng.random_range(y0..y1);
+        let height = (v.known.len() / v.width.max(1) as usize) as u32;
+        for py in y..(y + side).min(height) {
+            for px in x..(x + side).min(v.width) {
+                let n = (py * v.width + px) as usize;
+                if !v.known[n] {
+                    continue;
+                }
+                let (origin, dir) = v.camera.ray(px as f32 + 0.5, py as f32 + 0.5);
+                let c = v.rgb[n];
+                out.push(PixelRay {
+                    origin,
+                    dir,
+                    target: Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32) / 255.0,
+                });
             }
-            let (origin, dir) = v.camera.ray(x as f32 + 0.5, y as f32 + 0.5);
-            let c = v.rgb[n];
-            return Some(PixelRay {
-                origin,
-                dir,
-                target: Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32) / 255.0,
-            });
         }
-        None
     }
 }
 
