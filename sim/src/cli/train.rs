@@ -44,7 +44,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     pub sh_degree: u32,
     /// Adam learning rate of the density.
-    #[arg(long, default_value_t = 0.2)]
+    #[arg(long, default_value_t = 0.5)]
     pub lr_density: f32,
     /// Adam learning rate of the SH colour.
     #[arg(long, default_value_t = 0.05)]
@@ -53,7 +53,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Rays are drawn in PATCH×PATCH pixel patches (1: independent pixels).
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 1)]
     pub patch: u32,
     /// Factor the learning rates decay to by the end of each level.
     #[arg(long, default_value_t = 0.1)]

@@ -42,6 +42,19 @@ impl GridRay {
         }
     }
 
+    /// A Z-order key of where the ray crosses the box (the middle of
+    /// its clipped segment, quantised to 4 cells): rays sorted by it visit
+    /// the same cells one after another, which keeps the grid's cache lines
+    /// warm. Rays missing the box sort last.
+    pub fn locality_key(&self, bx: &MarchBox) -> u64 {
+        let Some((t0, t1)) = self.clip(bx.lo, bx.hi) else {
+            return u64::MAX;
+        };
+        let m = (self.origin + 0.5 * (t0 + t1) * self.dir - bx.lo) * 0.25;
+        let q = |v: f32| (v.max(0.0) as u64).min(0x1f_ffff);
+        morton3(q(m.x), q(m.y), q(m.z))
+    }
+
     /// Where the ray is inside [lo, hi]³ (grid units): (t_near, t_far).
     #[inline]
     fn clip(&self, lo: Vec3, hi: Vec3) -> Option<(f32, f32)> {
@@ -52,6 +65,20 @@ impl GridRay {
         let t1 = a.max(b).min_element();
         (t0 < t1 && t0.is_finite() && t1.is_finite()).then_some((t0, t1))
     }
+}
+
+/// Interleaves the low 21 bits of three coordinates (Z-order).
+fn morton3(x: u64, y: u64, z: u64) -> u64 {
+    fn spread(mut v: u64) -> u64 {
+        v &= 0x1f_ffff;
+        v = (v | v << 32) & 0x1f_0000_0000_ffff;
+        v = (v | v << 16) & 0x1f_0000_ff00_00ff;
+        v = (v | v << 8) & 0x100f_00f0_0f00_f00f;
+        v = (v | v << 4) & 0x10c3_0c30_c30c_30c3;
+        v = (v | v << 2) & 0x1249_2492_4924_9249;
+        v
+    }
+    spread(x) | spread(y) << 1 | spread(z) << 2
 }
 
 /// What the forward pass remembers of one sample.

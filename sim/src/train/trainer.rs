@@ -69,12 +69,12 @@ impl Default for TrainSettings {
             ],
             batch: 8192,
             sh_degree: 1,
-            lr_density: 0.2,
+            lr_density: 0.5,
             lr_color: 0.05,
             lr_final: 0.1,
             step: 0.5,
             keep_opacity: 0.002,
-            patch: 4,
+            patch: 1,
             seed: 0,
         }
     }
@@ -303,13 +303,24 @@ pub fn train(
                     while batch.len() < per_worker {
                         pixels.draw_patch(rng, settings.patch, batch);
                     }
-                    for px in batch.iter() {
-                        let jitter = rand::Rng::random::<f32>(rng);
-                        let ray = GridRay::from_world(g, px.origin, px.dir, jitter);
+                    // Independent pixels, processed in an order that
+                    // keeps neighbouring cells together (same gradient,
+                    // several times the throughput of a random order).
+                    let mut rays: Vec<(u64, GridRay, Vec3)> = batch
+                        .iter()
+                        .map(|px| {
+                            let jitter = rand::Rng::random::<f32>(rng);
+                            let ray = GridRay::from_world(g, px.origin, px.dir, jitter);
+                            (ray.locality_key(&bx), ray, px.target)
+                        })
+                        .collect();
+                    rays.sort_unstable_by_key(|r| r.0);
+                    for (_, ray, target) in &rays {
+                        let (ray, px_target) = (*ray, *target);
                         let out = march::train_ray(
-                            g, &bx, &ray, &params, px.target, loss_scale, scratch, grads,
+                            g, &bx, &ray, &params, px_target, loss_scale, scratch, grads,
                         );
-                        sse += f64::from((out.rgb - px.target).length_squared());
+                        sse += f64::from((out.rgb - px_target).length_squared());
                         samples += u64::from(out.samples);
                     }
                     (sse, samples, batch.len() as u64)
