@@ -110,7 +110,10 @@ fn per_view_scores_intervals_and_verdicts() {
     let back: EvalReport =
         serde_json::from_str(&std::fs::read_to_string(out.join("eval.json")).unwrap()).unwrap();
     assert_eq!(back.scenes[0].rows[0].views, s.rows[0].views);
-    assert_eq!(eval::report::markdown(&back, &[]), eval::report::markdown(&report, &[]));
+    assert_eq!(
+        eval::report::markdown(&back, &[]),
+        eval::report::markdown(&report, &[])
+    );
 }
 
 fn repo() -> PathBuf {

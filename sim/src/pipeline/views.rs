@@ -74,9 +74,7 @@ pub fn object_box(mask: &image::GrayImage, label: u8) -> Option<(u32, u32, u32, 
         let mut lo = lo.saturating_sub(BOX_MARGIN_PX);
         let mut hi = (hi + BOX_MARGIN_PX).min(size);
         while hi - lo < MIN_BOX_SIDE_PX.min(size) {
-            if lo > 0 {
-                lo -= 1;
-            }
+            lo = lo.saturating_sub(1);
             if hi < size {
                 hi += 1;
             }
