@@ -543,6 +543,14 @@ fn settings(opts: &EvalOptions, lpips: bool) -> Vec<(String, String)> {
             },
         ),
         (
+            "intervals".into(),
+            format!(
+                "95 % percentile bootstrap over the held-out views, {} resamples, seed {}",
+                stats::RESAMPLES,
+                stats::SEED
+            ),
+        ),
+        (
             "LPIPS".into(),
             if lpips {
                 "AlexNet v0.1".into()
