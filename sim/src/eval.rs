@@ -567,6 +567,11 @@ pub fn write(report: &EvalReport, out: &Path) -> anyhow::Result<()> {
         &out.join("eval.json"),
         &serde_json::to_string_pretty(report)?,
     )?;
+    write_report(report, out)
+}
+
+/// Writes `report.md` and the plots only (`nerflex eval --redraw`).
+pub fn write_report(report: &EvalReport, out: &Path) -> anyhow::Result<()> {
     let pictures = plots::draw(report, out)?;
     write_text(&out.join("report.md"), &report::markdown(report, &pictures))?;
     Ok(())

@@ -44,6 +44,11 @@ pub struct Args {
     /// the machinery (never for the paper's claims).
     #[arg(long, conflicts_with = "scale")]
     pub quick: bool,
+    /// Redraw report.md and the plots from OUT/eval.json without measuring
+    /// anything (after a change to the report; the intervals need an
+    /// eval.json with per-view scores).
+    #[arg(long)]
+    pub redraw: bool,
     /// Settings shared with `nerflex run`.
     #[command(flatten)]
     pub pipeline: PipelineArgs,
@@ -51,6 +56,20 @@ pub struct Args {
 
 /// Runs `nerflex eval`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.redraw {
+        let path = args.out.join("eval.json");
+        let text = std::fs::read_to_string(&path).with_context(|| {
+            format!("{}: cannot read (run `nerflex eval` first)", path.display())
+        })?;
+        let report: eval::EvalReport = serde_json::from_str(&text)
+            .with_context(|| format!("{}: not an evaluation report", path.display()))?;
+        eval::write_report(&report, &args.out)?;
+        println!(
+            "redrew {}/report.md and the plots from eval.json",
+            args.out.display()
+        );
+        return Ok(());
+    }
     if args.scenes.is_empty() {
         bail!("--scenes: give at least one scene");
     }

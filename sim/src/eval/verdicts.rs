@@ -7,9 +7,9 @@
 //! "≈"), **contradicts** when it lies on the other side (outside the
 //! margin), and is not significant otherwise. The claim is *confirmed*
 //! when at least half of its cells confirm and none contradicts,
-//! *contradicted* when more cells contradict than confirm, and *not
-//! significant* otherwise. The counts are printed, so a reader can apply
-//! another rule.
+//! *contradicted* when at least half contradict and none confirms, and
+//! *not significant* otherwise (too few significant cells, or cells of
+//! both signs). The counts are printed, so a reader can apply another rule.
 
 use super::compare::{devices, measured, paired, same_plan, Metric};
 use super::stats::{spearman_test, Significance};
@@ -56,12 +56,12 @@ impl Outcome {
         }
     }
 
-    /// The rule of the module docs over cell counts.
+    /// The rule of the module docs over cell counts (symmetric).
     pub fn from_counts(confirm: usize, contradict: usize, cells: usize) -> Outcome {
-        if contradict > confirm {
-            Outcome::Contradicted
-        } else if cells > 0 && contradict == 0 && 2 * confirm >= cells && confirm > 0 {
+        if confirm > 0 && contradict == 0 && 2 * confirm >= cells {
             Outcome::Confirmed
+        } else if contradict > 0 && confirm == 0 && 2 * contradict >= cells {
+            Outcome::Contradicted
         } else {
             Outcome::NotSignificant
         }
@@ -403,7 +403,9 @@ mod tests {
         assert_eq!(Outcome::from_counts(4, 0, 8), Confirmed);
         assert_eq!(Outcome::from_counts(3, 0, 8), NotSignificant);
         assert_eq!(Outcome::from_counts(5, 1, 8), NotSignificant);
-        assert_eq!(Outcome::from_counts(1, 2, 8), Contradicted);
+        assert_eq!(Outcome::from_counts(0, 4, 8), Contradicted);
+        assert_eq!(Outcome::from_counts(0, 1, 4), NotSignificant);
+        assert_eq!(Outcome::from_counts(1, 4, 8), NotSignificant);
         assert_eq!(Outcome::from_counts(0, 0, 0), NotSignificant);
     }
 

@@ -47,6 +47,9 @@ pub fn scope_note(r: &EvalReport, size: Option<u32>, out: &mut String) {
 
 /// Means with intervals per (device, method) of one scene.
 pub fn interval_table(s: &SceneReport, out: &mut String) {
+    if s.rows.iter().all(|r| r.views.is_empty()) {
+        return;
+    }
     let _ = writeln!(
         out,
         "Means over the held-out views with 95 % bootstrap intervals (views resampled, seed fixed):\n"
@@ -199,9 +202,21 @@ pub fn claims(r: &EvalReport, out: &mut String) {
         "A cell is one (scene, device); it confirms when the 95 % interval of the paired \
          difference lies on the claim's side of 0, contradicts when it lies on the other, and is \
          not significant otherwise. A claim is confirmed when at least half its cells confirm \
-         and none contradicts, contradicted when more contradict than confirm, else not \
-         significant (`eval::verdicts`).\n"
+         and none contradicts, contradicted when at least half contradict and none confirms, \
+         else not significant (`eval::verdicts`).\n"
     );
+    let no_views = r
+        .scenes
+        .iter()
+        .flat_map(|s| &s.rows)
+        .all(|row| row.views.is_empty());
+    if no_views {
+        let _ = writeln!(
+            out,
+            "This `eval.json` has no per-view scores (it predates them): the quality claims have \
+             no interval to test until `nerflex eval` is run again.\n"
+        );
+    }
     for v in verdicts::verdicts(r) {
         let _ = writeln!(out, "{}", v.line());
     }
