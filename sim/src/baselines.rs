@@ -116,7 +116,8 @@ pub struct Budget {
 }
 
 impl Budget {
-    /// The paper's unit: 0.1 MB.
+    /// The default unit, 0.1 MB: our choice for the paper's budgets (the
+    /// paper states 240 and 150 MB, not the unit its DP counts in).
     pub const PAPER_UNIT: Bytes = Bytes(100_000);
     /// Fewest units the default unit gives (finer than 0.1 MB for budgets
     /// under 100 MB).
@@ -137,7 +138,7 @@ impl Budget {
         Budget { total, unit }
     }
 
-    /// The paper's 0.1 MB (240 MB → 2400 units), unless that gives fewer
+    /// 0.1 MB ([`PAPER_UNIT`](Self::PAPER_UNIT): 240 MB → 2400 units), unless that gives fewer
     /// than [`MIN_UNITS`](Self::MIN_UNITS) units (then `⌊H/1000⌋`, at least 1 byte) or more
     /// than [`MAX_UNITS`](Self::MAX_UNITS) (then `⌈H/65536⌉`).
     pub fn default_unit(total: Bytes) -> Bytes {

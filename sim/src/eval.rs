@@ -7,6 +7,13 @@
 //! same on the real lego + chair capture (composed side by side).
 //!
 //! - [`calibrate`]: the one throughput factor per device;
+//! - [`stats`]: bootstrap intervals, paired differences, rank correlation;
+//! - [`compare`]: the intervals and paired differences of a report's rows;
+//! - [`detail`]: does the segmentation's measure predict what a dedicated
+//!   network gains?
+//! - [`verdicts`]: one line per claim of the paper;
+//! - [`honesty`]: what this evaluation substitutes for the paper's setup;
+//! - [`scale`]: the paper-scale and quick settings;
 //! - [`plots`]: the PNG figures;
 //! - [`report`]: the Markdown report.
 //!
@@ -14,13 +21,20 @@
 //! are drawn from it.
 
 pub mod calibrate;
+pub mod compare;
+pub mod detail;
+pub mod honesty;
 pub mod plots;
 pub mod report;
+pub mod scale;
+pub mod stats;
+pub mod verdicts;
 
 use crate::baselines::Method;
 use crate::device::Device;
 use crate::metrics::Lpips;
 use crate::pipeline::stages::{is_planner, next_budget, plan_within, MAX_REPLANS};
+use crate::pipeline::views::ViewScores;
 use crate::pipeline::{
     method_plan, prepare, realise, simulate_devices, Input, Options, Prepared, Progress, Realised,
     RealisedObject, SceneQuality, Timings,
@@ -114,6 +128,10 @@ pub struct Row {
     /// Quads of the loaded scene.
     #[serde(default)]
     pub quads: u64,
+    /// Every held-out view's scores (whole image and each scene object in
+    /// its box): what the intervals and paired differences are over.
+    #[serde(default)]
+    pub views: Vec<ViewScores>,
 }
 
 /// A scene's results.
@@ -129,6 +147,9 @@ pub struct SceneReport {
     pub samples: Vec<crate::bake::sweep::Sample>,
     /// Every (device, method).
     pub rows: Vec<Row>,
+    /// Each scene object: its network, complexity and detail frequencies.
+    #[serde(default)]
+    pub objects: Vec<detail::ObjectDetail>,
 }
 
 /// One FPS curve (the paper's FPS figure).
@@ -163,6 +184,14 @@ pub struct EvalReport {
     pub calibration: Vec<calibrate::Calibration>,
     /// Wall-clock seconds of the whole evaluation.
     pub wall_s: f64,
+    /// The baker every asset came from ([`crate::pipeline::BakeStore::baker`]).
+    #[serde(default = "hull_baker")]
+    pub baker: String,
+}
+
+/// What reports older than the field were made with.
+fn hull_baker() -> String {
+    crate::pipeline::bakes::HULL_BAKER.to_string()
 }
 
 /// What a scene's evaluation adds to the report besides its rows.
@@ -249,6 +278,7 @@ fn evaluate_scene(
                             raster_ms: 0.0,
                             shade_ms: 0.0,
                             quads: 0,
+                            views: Vec::new(),
                         });
                     }
                     continue;
@@ -344,6 +374,7 @@ fn evaluate_scene(
         timings: prepared.timings,
         samples: prepared.samples.iter().map(|b| b.sample.clone()).collect(),
         rows,
+        objects: detail::object_details(&prepared.segmentation),
     })
 }
 
@@ -381,6 +412,7 @@ fn row(
         raster_ms: sim.steady_raster_ms,
         shade_ms: sim.steady_shade_ms,
         quads: realised.objects.iter().map(|o| o.quads).sum(),
+        views: realised.views.clone(),
     }
 }
 
@@ -452,6 +484,9 @@ pub fn run(
         fps,
         calibration,
         wall_s: t0.elapsed().as_secs_f64(),
+        baker: crate::pipeline::BakeStore::new(&opts.pipeline.store)
+            .baker()
+            .to_string(),
     };
     write(&report, out)?;
     Ok(report)
@@ -508,6 +543,14 @@ fn settings(opts: &EvalOptions, lpips: bool) -> Vec<(String, String)> {
             },
         ),
         (
+            "intervals".into(),
+            format!(
+                "95 % percentile bootstrap over the held-out views, {} resamples, seed {}",
+                stats::RESAMPLES,
+                stats::SEED
+            ),
+        ),
+        (
             "LPIPS".into(),
             if lpips {
                 "AlexNet v0.1".into()
@@ -524,6 +567,11 @@ pub fn write(report: &EvalReport, out: &Path) -> anyhow::Result<()> {
         &out.join("eval.json"),
         &serde_json::to_string_pretty(report)?,
     )?;
+    write_report(report, out)
+}
+
+/// Writes `report.md` and the plots only (`nerflex eval --redraw`).
+pub fn write_report(report: &EvalReport, out: &Path) -> anyhow::Result<()> {
     let pictures = plots::draw(report, out)?;
     write_text(&out.join("report.md"), &report::markdown(report, &pictures))?;
     Ok(())

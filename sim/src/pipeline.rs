@@ -7,11 +7,13 @@
 //!   the bake sweep's cache, so a configuration is baked once across
 //!   methods, devices and runs;
 //! - [`stages`]: the stages as functions;
-//! - [`one`]: one method on one device (`nerflex run`) and its report.
+//! - [`one`]: one method on one device (`nerflex run`) and its report;
+//! - [`views`]: per-view scores of a rendered scene, whole and per object.
 
 pub mod bakes;
 pub mod one;
 pub mod stages;
+pub mod views;
 
 pub use bakes::{BakeStore, Baked};
 pub use one::{method_plan, run_one, RunResult};

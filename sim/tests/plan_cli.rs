@@ -19,7 +19,7 @@ fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()
 }
 
-const SCENE: &str = "examples/scenes/five_objects.json";
+const SCENE: &str = "examples/scenes/illustrative_five_objects.json";
 
 #[test]
 fn json_for_every_method() {

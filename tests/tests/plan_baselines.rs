@@ -189,10 +189,10 @@ fn brute_force_refuses_huge_searches() {
 #[test]
 fn every_method_on_the_example_scenes() {
     for (file, device) in [
-        ("five_objects.json", "iphone13"),
-        ("five_objects.json", "pixel4"),
+        ("illustrative_five_objects.json", "iphone13"),
+        ("illustrative_five_objects.json", "pixel4"),
         ("five_objects_profile.json", "iphone13"),
-        ("two_objects_single.json", "pixel4"),
+        ("illustrative_two_objects_single.json", "pixel4"),
     ] {
         let s = scene_file::load(&example(file)).unwrap();
         let budget = Budget::new(Device::lookup(device).unwrap().budget());
@@ -221,7 +221,7 @@ fn every_method_on_the_example_scenes() {
 
 #[test]
 fn infeasible_and_invalid_inputs_are_errors() {
-    let s = scene_file::load(&example("five_objects.json")).unwrap();
+    let s = scene_file::load(&example("illustrative_five_objects.json")).unwrap();
     let e = plan(Method::Dp, &s, Budget::new(Bytes::from_mb_u64(5))).unwrap_err();
     assert_eq!(
         e.to_string(),
@@ -266,7 +266,7 @@ fn infeasible_and_invalid_inputs_are_errors() {
 
 #[test]
 fn plan_json_has_exactly_the_issues_fields() {
-    let s = scene_file::load(&example("five_objects.json")).unwrap();
+    let s = scene_file::load(&example("illustrative_five_objects.json")).unwrap();
     let mut p = plan(Method::Dp, &s, Budget::new(Bytes::from_mb_u64(240))).unwrap();
     p.device = Some("iphone13".into());
     let v = serde_json::to_value(&p).unwrap();

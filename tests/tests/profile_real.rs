@@ -121,7 +121,8 @@ fn assert_same_scene(example: &str, fresh: &std::path::Path) {
 
 /// `examples/scenes/five_objects_profile.json` (the planning examples' and
 /// the Cortex-M firmware's five profiles) is the real fit of lego, chair,
-/// gear, tree and vase on the paper's 9 g × 5 p space.
+/// gear, tree and vase on a 9 g × 5 p space (our reading of the paper's
+/// "45 configuration pairs"; the paper gives no grid).
 #[test]
 fn five_objects_profile_example_is_the_real_fit() {
     let dir = tempfile::tempdir().unwrap();

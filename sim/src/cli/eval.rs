@@ -3,6 +3,7 @@
 
 use crate::cli::run::PipelineArgs;
 use crate::device::Device;
+use crate::eval::scale::Scale;
 use crate::eval::{self, EvalOptions};
 use crate::procedural::Preset;
 use anyhow::{bail, Context as _};
@@ -31,9 +32,23 @@ pub struct Args {
     /// Skip the real capture.
     #[arg(long)]
     pub no_real: bool,
-    /// Image side of the composed real capture, pixels.
-    #[arg(long, default_value_t = 200)]
-    pub real_size: u32,
+    /// Image side of the composed real capture, pixels [default: by --scale].
+    #[arg(long)]
+    pub real_size: Option<u32>,
+    /// Sizes: paper (800 × 800, 50 + 12 views), quick (128 × 128, 16 + 10
+    /// views, 1000 frames) or reduced (160 × 160, 16 + 4 views); flags
+    /// given explicitly win.
+    #[arg(long, value_enum, default_value_t = Scale::Paper)]
+    pub scale: Scale,
+    /// Same as `--scale quick`: the whole evaluation in minutes, to check
+    /// the machinery (never for the paper's claims).
+    #[arg(long, conflicts_with = "scale")]
+    pub quick: bool,
+    /// Redraw report.md and the plots from OUT/eval.json without measuring
+    /// anything (after a change to the report; the intervals need an
+    /// eval.json with per-view scores).
+    #[arg(long)]
+    pub redraw: bool,
     /// Settings shared with `nerflex run`.
     #[command(flatten)]
     pub pipeline: PipelineArgs,
@@ -41,15 +56,29 @@ pub struct Args {
 
 /// Runs `nerflex eval`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.redraw {
+        let path = args.out.join("eval.json");
+        let text = std::fs::read_to_string(&path).with_context(|| {
+            format!("{}: cannot read (run `nerflex eval` first)", path.display())
+        })?;
+        let report: eval::EvalReport = serde_json::from_str(&text)
+            .with_context(|| format!("{}: not an evaluation report", path.display()))?;
+        eval::write_report(&report, &args.out)?;
+        println!(
+            "redrew {}/report.md and the plots from eval.json",
+            args.out.display()
+        );
+        return Ok(());
+    }
     if args.scenes.is_empty() {
         bail!("--scenes: give at least one scene");
     }
-    let pipeline = args.pipeline.options(&args.out)?;
-    if !(16..=2048).contains(&args.real_size) {
-        bail!(
-            "--real-size: must be 16..=2048 pixels, got {}",
-            args.real_size
-        );
+    let scale = if args.quick { Scale::Quick } else { args.scale };
+    let sizes = scale.sizes();
+    let pipeline = args.pipeline.options_at(&args.out, sizes)?;
+    let real_size = args.real_size.unwrap_or(sizes.real_size);
+    if !(16..=2048).contains(&real_size) {
+        bail!("--real-size: must be 16..=2048 pixels, got {real_size}");
     }
     let devices = args
         .devices
@@ -81,7 +110,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         scenes: args.scenes.clone(),
         devices,
         real,
-        real_size: args.real_size,
+        real_size,
         fps_scene: Preset::Scene3,
     };
     args.pipeline.ignore_default_store(&args.out)?;

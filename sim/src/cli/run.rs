@@ -5,6 +5,7 @@
 
 use crate::baselines::Method;
 use crate::device::Device;
+use crate::eval::scale::{Scale, Sizes};
 use crate::metrics::Lpips;
 use crate::pipeline::{self, Input, Options, Progress};
 use crate::procedural::Preset;
@@ -39,20 +40,23 @@ pub struct Args {
 
 /// Flags shared by `nerflex run` and `nerflex eval`: the built-in captures'
 /// size, the simulation's length, the bake store, LPIPS and the progress bar.
+/// Sizes left out come from the command's scale (`nerflex run`: the
+/// reduced one; `nerflex eval`: `--scale`).
 #[derive(Debug, clap::Args)]
 pub struct PipelineArgs {
-    /// Image side of a generated (built-in) capture, pixels.
-    #[arg(long, default_value_t = 160)]
-    pub size: u32,
-    /// Training views of a generated capture.
-    #[arg(long, default_value_t = 16)]
-    pub views: usize,
-    /// Held-out views of a generated capture.
-    #[arg(long, default_value_t = 4)]
-    pub test_views: usize,
-    /// Frames of each turntable simulation.
-    #[arg(long, default_value_t = 2000)]
-    pub frames: usize,
+    /// Image side of a generated (built-in) capture, pixels [default: 160;
+    /// eval: by --scale].
+    #[arg(long)]
+    pub size: Option<u32>,
+    /// Training views of a generated capture [default: 16; eval: by --scale].
+    #[arg(long)]
+    pub views: Option<usize>,
+    /// Held-out views of a generated capture [default: 4; eval: by --scale].
+    #[arg(long)]
+    pub test_views: Option<usize>,
+    /// Frames of each turntable simulation [default: 2000; eval: by --scale].
+    #[arg(long)]
+    pub frames: Option<usize>,
     /// Folder of kept bakes, shared between runs [default: OUT/bakes].
     #[arg(long, value_name = "DIR")]
     pub store: Option<PathBuf>,
@@ -69,21 +73,30 @@ impl PipelineArgs {
     /// reduced defaults otherwise), with the bake store under `out` unless
     /// `--store` names one.
     pub fn options(&self, out: &Path) -> anyhow::Result<Options> {
-        if self.frames == 0 {
+        self.options_at(out, Scale::Reduced.sizes())
+    }
+
+    /// As [`PipelineArgs::options`], with `defaults` for the sizes not given.
+    pub fn options_at(&self, out: &Path, defaults: Sizes) -> anyhow::Result<Options> {
+        let size = self.size.unwrap_or(defaults.size);
+        let views = self.views.unwrap_or(defaults.train_views);
+        let test_views = self.test_views.unwrap_or(defaults.test_views);
+        let frames = self.frames.unwrap_or(defaults.frames);
+        if frames == 0 {
             bail!("--frames: must be at least 1");
         }
-        if !(16..=2048).contains(&self.size) {
-            bail!("--size: must be 16..=2048 pixels, got {}", self.size);
+        if !(16..=2048).contains(&size) {
+            bail!("--size: must be 16..=2048 pixels, got {size}");
         }
-        if self.views < 2 || self.test_views == 0 {
+        if views < 2 || test_views == 0 {
             bail!("--views must be at least 2 and --test-views at least 1");
         }
         let mut opts = Options::reduced(self.store.clone().unwrap_or_else(|| out.join("bakes")));
-        opts.size = self.size;
-        opts.train_views = self.views;
-        opts.test_views = self.test_views;
+        opts.size = size;
+        opts.train_views = views;
+        opts.test_views = test_views;
         opts.sim = SimOptions {
-            frames: self.frames,
+            frames,
             ..SimOptions::default()
         };
         Ok(opts)

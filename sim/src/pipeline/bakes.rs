@@ -17,6 +17,9 @@ use anyhow::Context as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// The visual-hull baker's name in reports ([`crate::bake::bake`]).
+pub const HULL_BAKER: &str = "hull";
+
 /// A finished bake.
 #[derive(Clone, Debug)]
 pub struct Baked {
@@ -52,6 +55,12 @@ impl BakeStore {
     /// The folder.
     pub fn root(&self) -> &Path {
         &self.root
+    }
+
+    /// The baker behind [`BakeStore::get_or_bake`]: the one place a run's
+    /// assets come from, so reports name it (a trained baker plugs in here).
+    pub fn baker(&self) -> &'static str {
+        HULL_BAKER
     }
 
     /// The bake of `obj` at (g, p): from the store, or baked, written and

@@ -6,6 +6,7 @@ use super::stages::{
     Input, Options, Prepared, Progress, Realised, RealisedObject, SceneQuality, Timings,
     MAX_REPLANS,
 };
+use super::views::ViewScores;
 use crate::baselines::{Method, Plan};
 use crate::device::Device;
 use crate::metrics::Lpips;
@@ -151,6 +152,7 @@ struct ReportJson<'a> {
     file_bytes: u64,
     objects: &'a [RealisedObject],
     quality: SceneQuality,
+    views: &'a [ViewScores],
     load_failure: Option<String>,
     mean_fps: f64,
     steady_fps: f64,
@@ -242,6 +244,7 @@ impl RunResult {
                 None => "skipped (no weights)".into(),
             }
         );
+        interval_lines(&self.realised.views, &mut s);
         let sim = &self.simulation;
         match &sim.load_failure {
             Some(f) => {
@@ -299,6 +302,7 @@ impl RunResult {
             file_bytes: self.realised.file_bytes(),
             objects: &self.realised.objects,
             quality: self.realised.quality,
+            views: &self.realised.views,
             load_failure: self.simulation.load_failure.as_ref().map(|f| f.to_string()),
             mean_fps: self.simulation.mean_fps,
             steady_fps: self.simulation.steady_fps,
@@ -320,6 +324,52 @@ impl RunResult {
             link_asset(&out.join("assets"), o)?;
         }
         Ok(())
+    }
+}
+
+/// The 95 % bootstrap intervals of the whole scene's and each object's
+/// scores over the held-out views (`eval::stats`): how far the means could
+/// move with other views, so a difference smaller than that is noise.
+fn interval_lines(views: &[ViewScores], s: &mut String) {
+    use crate::eval::stats::bootstrap_mean;
+    let col = |f: &dyn Fn(&ViewScores) -> Option<f64>| -> Vec<f64> {
+        views.iter().filter_map(f).collect()
+    };
+    let (Some(ssim), Some(psnr)) = (
+        bootstrap_mean(&col(&|v| Some(v.ssim))),
+        bootstrap_mean(&col(&|v| Some(v.psnr))),
+    ) else {
+        return;
+    };
+    let lpips = bootstrap_mean(&col(&|v| v.lpips));
+    let _ = writeln!(
+        s,
+        "  95 % intervals over the {} views: SSIM {}  PSNR {} dB{}",
+        ssim.n,
+        ssim.show(4),
+        psnr.show(2),
+        lpips.map_or(String::new(), |l| format!("  LPIPS {}", l.show(4)))
+    );
+    let mut names: Vec<&str> = Vec::new();
+    for o in views.iter().flat_map(|v| &v.objects) {
+        if !names.contains(&o.object.as_str()) {
+            names.push(&o.object);
+        }
+    }
+    if names.is_empty() {
+        return;
+    }
+    let _ = writeln!(s, "  each object's SSIM in its box, mean [95 % interval]:");
+    for n in names {
+        let v: Vec<f64> = views
+            .iter()
+            .flat_map(|v| &v.objects)
+            .filter(|o| o.object == n)
+            .map(|o| o.ssim)
+            .collect();
+        if let Some(i) = bootstrap_mean(&v) {
+            let _ = writeln!(s, "    {n:<12} {} over {} views", i.show(4), i.n);
+        }
     }
 }
 

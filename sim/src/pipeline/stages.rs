@@ -17,6 +17,7 @@
 //! (not enlarged) views ([`baseline_views`], [`baseline_plan`]).
 
 use super::bakes::{BakeStore, Baked};
+use super::views::{score_view, ViewScores};
 use crate::bake::sweep::{Fnv64, ObjectViews};
 use crate::baselines::{self, Budget, Method, Plan, PlannedObject, DEFAULT_G, DEFAULT_P};
 use crate::camera::Camera;
@@ -514,6 +515,9 @@ pub struct Realised {
     pub objects: Vec<RealisedObject>,
     /// The whole scene's quality on the capture's held-out views.
     pub quality: SceneQuality,
+    /// The same per held-out view, with each scene object in its box
+    /// ([`super::views`]).
+    pub views: Vec<ViewScores>,
     /// Seconds spent baking now (0 if everything was in the store).
     pub bake_s: f64,
 }
@@ -715,23 +719,24 @@ pub fn realise(
             asset: b.dir.clone(),
         });
     }
-    let quality = scene_quality(prepared, &objects, opts, lpips, progress)?;
+    let (quality, views) = scene_quality(prepared, &objects, opts, lpips, progress)?;
     Ok(Realised {
         objects,
         quality,
+        views,
         bake_s,
     })
 }
 
 /// Renders the capture's held-out views with every object and compares
-/// them with the ground truth.
+/// them with the ground truth: the means and every view's scores.
 fn scene_quality(
     prepared: &Prepared,
     objects: &[RealisedObject],
     opts: &Options,
     lpips: Option<&Lpips>,
     progress: &dyn Progress,
-) -> anyhow::Result<SceneQuality> {
+) -> anyhow::Result<(SceneQuality, Vec<ViewScores>)> {
     let Some(capture) = &prepared.capture else {
         return composite_quality(prepared, objects, lpips, progress);
     };
@@ -743,17 +748,17 @@ fn scene_quality(
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
     let refs: Vec<&crate::asset::Asset> = assets.iter().collect();
+    let scene_objects: Vec<(String, u8)> = capture
+        .scene
+        .iter()
+        .flat_map(|s| s.objects.iter().map(|o| (o.name.clone(), o.mask_value)))
+        .collect();
     let test = &capture.test;
     progress.stage("rendering the held-out views", test.len() as u64);
-    let mut sum = SceneQuality::default();
-    let mut lp = 0.0;
+    let mut views = Vec::with_capacity(test.len());
     for (i, f) in test.iter().enumerate() {
         let img = render(&refs, &f.camera)?;
-        let s = Metrics::compare(&img, &f.image, lpips)
-            .with_context(|| format!("measuring held-out view {i}"))?;
-        sum.ssim += s.ssim;
-        sum.psnr += s.psnr.min(100.0);
-        lp += s.lpips.unwrap_or(0.0);
+        views.push(score_view(i, &img, f, &scene_objects, lpips)?);
         if let Some(dir) = &opts.renders {
             std::fs::create_dir_all(dir)
                 .with_context(|| format!("{}: cannot create", dir.display()))?;
@@ -763,13 +768,18 @@ fn scene_quality(
         }
         progress.step(&format!("view {i}"));
     }
-    let n = test.len().max(1) as f64;
-    Ok(SceneQuality {
-        ssim: sum.ssim / n,
-        psnr: sum.psnr / n,
-        lpips: lpips.map(|_| lp / n),
-        views: test.len(),
-    })
+    Ok((mean_quality(&views, lpips.is_some()), views))
+}
+
+/// The means of per-view scores.
+fn mean_quality(views: &[ViewScores], lpips: bool) -> SceneQuality {
+    let n = views.len().max(1) as f64;
+    SceneQuality {
+        ssim: views.iter().map(|v| v.ssim).sum::<f64>() / n,
+        psnr: views.iter().map(|v| v.psnr).sum::<f64>() / n,
+        lpips: lpips.then(|| views.iter().filter_map(|v| v.lpips).sum::<f64>() / n),
+        views: views.len(),
+    }
 }
 
 /// A composite has no whole-scene view: each object's asset is rendered from
@@ -781,7 +791,7 @@ fn composite_quality(
     objects: &[RealisedObject],
     lpips: Option<&Lpips>,
     progress: &dyn Progress,
-) -> anyhow::Result<SceneQuality> {
+) -> anyhow::Result<(SceneQuality, Vec<ViewScores>)> {
     let source_of = |name: &str| -> Option<&ObjectViews> {
         let object = prepared
             .networks
@@ -791,13 +801,13 @@ fn composite_quality(
             .unwrap_or(name);
         prepared.block_views.iter().find(|v| v.name == object)
     };
-    let views: usize = objects
+    let count: usize = objects
         .iter()
         .filter_map(|o| source_of(&o.name))
         .map(|v| v.test.len())
         .sum();
-    progress.stage("rendering the held-out views", views as u64);
-    let (mut ssim, mut psnr, mut lp, mut n) = (0.0, 0.0, 0.0, 0usize);
+    progress.stage("rendering the held-out views", count as u64);
+    let mut views = Vec::with_capacity(count);
     for o in objects {
         let src =
             source_of(&o.name).with_context(|| format!("no source capture for `{}`", o.name))?;
@@ -807,20 +817,18 @@ fn composite_quality(
             let img = render(&[&asset], cam)?;
             let s = Metrics::compare(&img, gt, lpips)
                 .with_context(|| format!("measuring {} held-out view {i}", o.name))?;
-            ssim += s.ssim;
-            psnr += s.psnr.min(100.0);
-            lp += s.lpips.unwrap_or(0.0);
-            n += 1;
+            views.push(ViewScores {
+                view: i,
+                source: Some(src.name.clone()),
+                ssim: s.ssim,
+                psnr: s.psnr.min(super::views::PSNR_CAP_DB),
+                lpips: s.lpips,
+                objects: Vec::new(),
+            });
             progress.step(&format!("{} view {i}", o.name));
         }
     }
-    let d = n.max(1) as f64;
-    Ok(SceneQuality {
-        ssim: ssim / d,
-        psnr: psnr / d,
-        lpips: lpips.map(|_| lp / d),
-        views: n,
-    })
+    Ok((mean_quality(&views, lpips.is_some()), views))
 }
 
 fn render(assets: &[&crate::asset::Asset], camera: &Camera) -> anyhow::Result<RgbaImage> {
