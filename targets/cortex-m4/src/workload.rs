@@ -194,13 +194,14 @@ pub fn mlp_hash(m: &FixedMlp) -> u32 {
     h.0
 }
 
-fn hash_narrow_layer<const P: usize, const O: usize>(h: &mut Fnv, l: &NarrowLayer<P, O>) {
-    for row in &l.w {
-        for &w in row {
-            h.u32(w);
-        }
+fn hash_narrow_layer<const P: usize, const G: usize, const N: usize>(
+    h: &mut Fnv,
+    l: &NarrowLayer<P, G, N>,
+) {
+    for &w in l.w.iter().flatten().flatten() {
+        h.u32(w);
     }
-    for &b in &l.bias {
+    for &b in l.bias.iter().flatten() {
         h.u32(b as u32);
     }
 }
@@ -211,7 +212,7 @@ pub fn narrow_hash(m: &NarrowMlp) -> u32 {
     hash_narrow_layer(&mut h, &m.l0);
     hash_narrow_layer(&mut h, &m.l1);
     hash_narrow_layer(&mut h, &m.l2);
-    h.bytes(&m.logit_shift.map(|s| s as u8));
+    h.bytes(&m.logit_lshift);
     h.bytes(&m.weight_max.to_le_bytes());
     h.0
 }

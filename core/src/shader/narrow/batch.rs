@@ -3,8 +3,8 @@
 //! per-pixel [`NarrowMlp::shade`] result (same wrapping `i32` sums, same
 //! shifts, the same threshold count for the sigmoid).
 
-use super::{input_pairs, logit_q24, NarrowMlp, INPUT_PAIRS};
-use crate::shader::{sigmoid_u8, ViewDir, OUTPUTS};
+use super::{input_pairs, logit_q24, sigmoid_bucketed, NarrowMlp, INPUT_PAIRS};
+use crate::shader::{ViewDir, OUTPUTS};
 
 /// Pixels per batch (one AVX2 register of `i32`).
 pub const LANES: usize = 8;
@@ -32,8 +32,8 @@ pub fn shade_portable(m: &NarrowMlp, x: &BatchInput) -> [[u8; OUTPUTS]; LANES] {
             *d = row.get(lane).copied().unwrap_or(0);
         }
         let z = m.logit_acc(&xl);
-        for ((c, &a), &s) in o.iter_mut().zip(z.iter()).zip(m.logit_shift.iter()) {
-            *c = sigmoid_u8(logit_q24(a, s));
+        for ((c, &a), &s) in o.iter_mut().zip(z.iter()).zip(m.logit_lshift.iter()) {
+            *c = sigmoid_bucketed(logit_q24(a, s));
         }
     }
     out
@@ -44,7 +44,7 @@ pub fn shade_portable(m: &NarrowMlp, x: &BatchInput) -> [[u8; OUTPUTS]; LANES] {
 #[allow(unsafe_code)]
 pub mod avx2 {
     use super::{BatchInput, LANES};
-    use crate::shader::narrow::{logit_q24, NarrowLayer, NarrowMlp, HIDDEN_PAIRS, INPUT_PAIRS};
+    use crate::shader::narrow::{NarrowLayer, NarrowMlp, GROUP, HIDDEN_PAIRS, INPUT_PAIRS};
     use crate::shader::{HIDDEN, OUTPUTS, THRESHOLDS_Q24};
     use core::arch::x86_64::*;
 
@@ -59,23 +59,16 @@ pub mod avx2 {
             // SAFETY: `row` is 32 readable bytes; unaligned load.
             *v = unsafe { _mm256_loadu_si256(row.as_ptr().cast()) };
         }
-        let h1 = relu_pack(&layer(&m.l0, &xv));
-        let h2 = relu_pack(&layer(&m.l1, &h1));
-        let z = layer(&m.l2, &h2);
+        let h1 = relu_pack(&layer::<INPUT_PAIRS, GROUP, 4, HIDDEN>(&m.l0, &xv));
+        let h2 = relu_pack(&layer::<HIDDEN_PAIRS, GROUP, 4, HIDDEN>(&m.l1, &h1));
+        let z = layer::<HIDDEN_PAIRS, OUTPUTS, 1, OUTPUTS>(&m.l2, &h2);
         let mut rgb = [[0u8; OUTPUTS]; LANES];
-        for (c, (&zc, &shift)) in z.iter().zip(m.logit_shift.iter()).enumerate() {
-            let q = if shift >= 0 {
-                let count = _mm_cvtsi32_si128(i32::from(shift.min(31)));
-                _mm256_sra_epi32(zc, count)
-            } else {
-                // Saturating left shift: rare (logits beyond ±128); per lane.
-                let mut a = [0i32; LANES];
-                // SAFETY: `a` is 32 writable bytes.
-                unsafe { _mm256_storeu_si256(a.as_mut_ptr().cast(), zc) };
-                let a = a.map(|v| logit_q24(v, shift));
-                // SAFETY: `a` is 32 readable bytes.
-                unsafe { _mm256_loadu_si256(a.as_ptr().cast()) }
-            };
+        for (c, (&zc, &shift)) in z.iter().zip(m.logit_lshift.iter()).enumerate() {
+            let s = i32::from(shift.min(31));
+            let lim = _mm256_set1_epi32(i32::MAX >> s);
+            let low = _mm256_set1_epi32(-(i32::MAX >> s) - 1);
+            let clamped = _mm256_max_epi32(_mm256_min_epi32(zc, lim), low);
+            let q = _mm256_sll_epi32(clamped, _mm_cvtsi32_si128(s));
             let k = sigmoid(q);
             let mut ks = [0i32; LANES];
             // SAFETY: `ks` is 32 writable bytes.
@@ -90,17 +83,20 @@ pub mod avx2 {
     }
 
     #[target_feature(enable = "avx2")]
-    fn layer<const P: usize, const O: usize>(
-        l: &NarrowLayer<P, O>,
+    fn layer<const P: usize, const G: usize, const N: usize, const O: usize>(
+        l: &NarrowLayer<P, G, N>,
         x: &[__m256i; P],
     ) -> [__m256i; O] {
         let mut out = [_mm256_setzero_si256(); O];
-        for (acc, (row, &b)) in out.iter_mut().zip(l.w.iter().zip(l.bias.iter())) {
-            let mut a = _mm256_set1_epi32(b);
-            for (&xp, &wp) in x.iter().zip(row.iter()) {
-                a = _mm256_add_epi32(a, _mm256_madd_epi16(xp, _mm256_set1_epi32(wp as i32)));
+        for (accs, (w, b)) in out.chunks_mut(G).zip(l.w.iter().zip(l.bias.iter())) {
+            for (g, (acc, &bg)) in accs.iter_mut().zip(b.iter()).enumerate() {
+                let mut a = _mm256_set1_epi32(bg);
+                for (&xp, wp) in x.iter().zip(w.iter()) {
+                    let wv = wp.get(g).copied().unwrap_or(0);
+                    a = _mm256_add_epi32(a, _mm256_madd_epi16(xp, _mm256_set1_epi32(wv as i32)));
+                }
+                *acc = a;
             }
-            *acc = a;
         }
         out
     }

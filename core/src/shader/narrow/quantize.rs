@@ -1,7 +1,9 @@
 //! Building a [`NarrowMlp`] from float weights, and the error check that
 //! decides whether a weight set may use it. Set-up code: uses `f64`.
 
-use super::{NarrowLayer, NarrowMlp, INPUT_PAIRS, INPUT_PAIR_INDICES};
+use super::{
+    NarrowLayer, NarrowMlp, GROUP, HIDDEN_GROUPS, HIDDEN_PAIRS, INPUT_PAIRS, INPUT_PAIR_INDICES,
+};
 use crate::shader::{
     mlp_input_f64, mlp_logits_f64, MlpWeights, Param, ShaderError, ViewDir, HIDDEN, INPUTS, OUTPUTS,
 };
@@ -43,12 +45,13 @@ struct LayerIn<'a, const I: usize, const P: usize> {
     pairs: &'a [[Option<usize>; 2]; P],
 }
 
-/// A quantised layer and, per output, its accumulator scale and bound.
-struct LayerOut<const P: usize, const O: usize> {
-    layer: NarrowLayer<P, O>,
-    scale: [f64; O],
-    acc_bound: [i64; O],
-    shift: [i8; O],
+/// A quantised layer and, per output (first `G · N` entries), its
+/// accumulator scale, bound and logit shift.
+struct LayerOut<const P: usize, const G: usize, const N: usize> {
+    layer: NarrowLayer<P, G, N>,
+    scale: [f64; HIDDEN],
+    acc_bound: [i64; HIDDEN],
+    shift: [u8; HIDDEN],
 }
 
 fn check_finite<const I: usize, const O: usize>(
@@ -95,25 +98,26 @@ fn floor_log2(s: f64) -> i32 {
 /// Quantises one layer: weights `w[i][o]` (effective, real), bias `b[o]`.
 /// `logit`: power-of-two scales and a shift to Q24 instead of the fixed
 /// `>> 16` of a hidden layer.
-fn quantize_layer<const I: usize, const P: usize, const O: usize>(
+fn quantize_layer<const I: usize, const O: usize, const P: usize, const G: usize, const N: usize>(
     layer: u8,
     w: &[[f64; O]; I],
     b: &[f64; O],
     input: &LayerIn<I, P>,
     wmax: i16,
     logit: bool,
-) -> Result<LayerOut<P, O>, ShaderError> {
+) -> Result<LayerOut<P, G, N>, ShaderError> {
     let mut out = LayerOut {
         layer: NarrowLayer {
-            w: [[0u32; P]; O],
-            bias: [0i32; O],
+            w: [[[0u32; G]; P]; N],
+            bias: [[0i32; G]; N],
         },
-        scale: [0.0; O],
-        acc_bound: [0; O],
-        shift: [0; O],
+        scale: [0.0; HIDDEN],
+        acc_bound: [0; HIDDEN],
+        shift: [0; HIDDEN],
     };
     let wmax_f = f64::from(wmax);
-    for o in 0..O {
+    for o in 0..(G * N).min(O) {
+        let (n, g) = (o / G, o % G);
         let col = |i: usize| w.get(i).and_then(|r| r.get(o)).copied().unwrap_or(0.0);
         let bias = b.get(o).copied().unwrap_or(0.0);
         // Largest scale the weight width allows, and the real bound of |acc / S|.
@@ -148,14 +152,20 @@ fn quantize_layer<const I: usize, const P: usize, const O: usize>(
                     what: "no accumulator scale keeps every 16-bit weight and the i32 accumulator in range",
                 });
             }
-            let mut shift = 0i8;
+            let mut shift = 0u8;
             let half: i64;
             if logit {
-                let k = floor_log2(s);
+                // At most Q24 (finer gains nothing): a left shift to Q24.
+                let k = floor_log2(s).min(24);
+                if 24 - k > 31 {
+                    return Err(ShaderError::Unrepresentable {
+                        layer,
+                        what: "a logit can exceed 2^38",
+                    });
+                }
                 s = libm::ldexp(1.0, k);
-                let sh = (k - 24).clamp(-31, 31);
-                shift = sh as i8;
-                half = if sh > 0 { 1i64 << (sh - 1) } else { 0 };
+                shift = (24 - k) as u8;
+                half = 0;
             } else {
                 half = 1 << 15;
             }
@@ -190,14 +200,18 @@ fn quantize_layer<const I: usize, const P: usize, const O: usize>(
                 s *= 0.99;
                 continue;
             }
-            if let (Some(r), Some(bo), Some(so), Some(ab), Some(sh)) = (
-                out.layer.w.get_mut(o),
-                out.layer.bias.get_mut(o),
+            if let (Some(wn), Some(bo), Some(so), Some(ab), Some(sh)) = (
+                out.layer.w.get_mut(n),
+                out.layer.bias.get_mut(n).and_then(|b| b.get_mut(g)),
                 out.scale.get_mut(o),
                 out.acc_bound.get_mut(o),
                 out.shift.get_mut(o),
             ) {
-                *r = row;
+                for (dst, &v) in wn.iter_mut().zip(row.iter()) {
+                    if let Some(d) = dst.get_mut(g) {
+                        *d = v;
+                    }
+                }
                 *bo = bias_q as i32; // |bias_q| ≤ acc_bound ≤ i32::MAX
                 *so = s;
                 *ab = acc_bound as i64;
@@ -240,7 +254,7 @@ impl NarrowMlp {
             *s = DIR_SCALE;
             *b = 32768; // any Q2.30 bits: |top 16 bits| ≤ 2^15
         }
-        let l0 = quantize_layer::<INPUTS, INPUT_PAIRS, HIDDEN>(
+        let l0 = quantize_layer::<INPUTS, HIDDEN, INPUT_PAIRS, GROUP, HIDDEN_GROUPS>(
             0,
             &w0,
             &b0,
@@ -254,7 +268,7 @@ impl NarrowMlp {
         )?;
         let hidden_pairs = hidden_pair_indices();
         let (s1, b1) = hidden_inputs(&l0);
-        let l1 = quantize_layer(
+        let l1 = quantize_layer::<HIDDEN, HIDDEN, HIDDEN_PAIRS, GROUP, HIDDEN_GROUPS>(
             1,
             &w.w1.map(|r| r.map(f64::from)),
             &w.b1.map(f64::from),
@@ -267,7 +281,7 @@ impl NarrowMlp {
             false,
         )?;
         let (s2, b2) = hidden_inputs(&l1);
-        let l2: LayerOut<8, OUTPUTS> = quantize_layer(
+        let l2 = quantize_layer::<HIDDEN, OUTPUTS, HIDDEN_PAIRS, OUTPUTS, 1>(
             2,
             &w.w2.map(|r| r.map(f64::from)),
             &w.b2.map(f64::from),
@@ -283,7 +297,7 @@ impl NarrowMlp {
             l0: l0.layer,
             l1: l1.layer,
             l2: l2.layer,
-            logit_shift: l2.shift,
+            logit_lshift: [l2.shift[0], l2.shift[1], l2.shift[2]],
             weight_max: wmax,
         })
     }
@@ -342,7 +356,9 @@ fn hidden_pair_indices() -> [[Option<usize>; 2]; 8] {
 }
 
 /// Scales and bounds of a hidden layer's outputs (`acc >> 16`, ReLU).
-fn hidden_inputs<const P: usize>(l: &LayerOut<P, HIDDEN>) -> ([f64; HIDDEN], [i64; HIDDEN]) {
+fn hidden_inputs<const P: usize, const G: usize, const N: usize>(
+    l: &LayerOut<P, G, N>,
+) -> ([f64; HIDDEN], [i64; HIDDEN]) {
     (
         l.scale.map(|s| s / 65536.0),
         l.acc_bound.map(|a| (a >> 16).min(0x7FFF)),

@@ -69,7 +69,7 @@ fn eight_bit_weights_are_built_and_judged_by_the_same_check() {
             .unsigned_abs()
             .max(((v >> 16) as u16 as i16).unsigned_abs())
     };
-    assert!(m.l1.w.iter().flatten().all(|&v| max(v) <= 127));
+    assert!(m.l1.w.iter().flatten().flatten().all(|&v| max(v) <= 127));
     let h = m.error_histogram(&w, check_samples(256, 4));
     assert_eq!(h.total(), 1024);
     // q7 weights: coarse, and the check says so.
@@ -100,7 +100,7 @@ fn bad_weights_are_rejected_and_zero_weights_give_grey() {
     let mut s = std::string::String::new();
     m.write_rust(&mut s, "NARROW").unwrap();
     assert!(s.starts_with("pub const NARROW: NarrowMlp = NarrowMlp {"));
-    assert!(s.contains("logit_shift: ["));
+    assert!(s.contains("logit_lshift: ["));
 }
 
 /// The accumulator bound holds: the extreme inputs reproduce the `i64` sum.
@@ -119,9 +119,12 @@ fn accumulators_never_wrap_for_any_input() {
     for f in [[0u8; 4], [255; 4], [255, 0, 255, 0], [0, 255, 0, 255]] {
         for d in [[i32::MIN; 3], [i32::MAX; 3], [i32::MIN, i32::MAX, i32::MIN]] {
             let x = input_pairs(f, f, ViewDir::from_bits(d));
-            let acc = m.l0.accumulate(&x);
-            for (o, &a) in acc.iter().enumerate() {
-                assert_eq!(i64::from(a), wide(&m.l0.w[o], m.l0.bias[o], &x));
+            for n in 0..HIDDEN_GROUPS {
+                let acc = m.l0.group(n, &x);
+                for (g, &a) in acc.iter().enumerate() {
+                    let row: Vec<u32> = m.l0.w[n].iter().map(|p| p[g]).collect();
+                    assert_eq!(i64::from(a), wide(&row, m.l0.bias[n][g], &x));
+                }
             }
         }
     }
@@ -136,17 +139,13 @@ fn random_tables(seed: u64) -> NarrowMlp {
         (s >> 32) as u32
     };
     let mut m = NarrowMlp::from_weights(&MlpWeights::ZERO, WeightBits::Sixteen).unwrap();
-    m.l0.w.iter_mut().flatten().for_each(|v| *v = next());
-    m.l1.w.iter_mut().flatten().for_each(|v| *v = next());
-    m.l2.w.iter_mut().flatten().for_each(|v| *v = next());
-    m.l0.bias.iter_mut().for_each(|v| *v = next() as i32);
-    m.l1.bias.iter_mut().for_each(|v| *v = next() as i32);
-    m.l2.bias.iter_mut().for_each(|v| *v = next() as i32);
-    m.logit_shift = [
-        (next() % 80) as i8 - 40,
-        (next() % 20) as i8 - 10,
-        next() as i8,
-    ];
+    m.l0.w.iter_mut().flatten().flatten().for_each(|v| *v = next());
+    m.l1.w.iter_mut().flatten().flatten().for_each(|v| *v = next());
+    m.l2.w.iter_mut().flatten().flatten().for_each(|v| *v = next());
+    m.l0.bias.iter_mut().flatten().for_each(|v| *v = next() as i32);
+    m.l1.bias.iter_mut().flatten().for_each(|v| *v = next() as i32);
+    m.l2.bias.iter_mut().flatten().for_each(|v| *v = next() as i32);
+    m.logit_lshift = [(next() % 40) as u8, (next() % 8) as u8, next() as u8];
     m
 }
 
@@ -184,5 +183,17 @@ proptest! {
             random_tables(seed)
         };
         check_batches_equal_scalar(&m, &px);
+    }
+}
+
+#[test]
+fn bucketed_sigmoid_equals_the_threshold_search_everywhere() {
+    use crate::shader::sigmoid_u8;
+    // Every z of the bucketed range, then the extremes.
+    for z in -(1i32 << 27)..(1 << 27) {
+        assert_eq!(sigmoid_bucketed(z), sigmoid_u8(z), "z = {z}");
+    }
+    for z in [i32::MIN, i32::MIN + 1, -(1 << 27) - 1, 1 << 27, (1 << 27) + 1, i32::MAX] {
+        assert_eq!(sigmoid_bucketed(z), sigmoid_u8(z), "z = {z}");
     }
 }
