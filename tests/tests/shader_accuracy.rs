@@ -234,3 +234,34 @@ fn narrow_check_accepts_real_weights_and_batches_are_bit_identical() {
         println!("{name}: {checked} samples, batches bit-identical (AVX2: {avx2})");
     }
 }
+
+/// `render` with the batched narrow shader against the exact shader on the
+/// real drums asset: same coverage, colours within the narrow shader's error.
+#[test]
+fn narrow_batched_render_tracks_the_exact_render() {
+    use nerflex_core::raster::glam::Vec3;
+    use nerflex_sim::camera::{Camera, Intrinsics};
+    use nerflex_sim::render::{narrow_tables, try_render_scene, try_render_scene_narrow};
+    let Some(data) = nerflex_sim::data::require_data("narrow render on real drums") else {
+        return;
+    };
+    let asset = nerflex_sim::asset::Asset::load(&data.join("mobilenerf/drums")).unwrap();
+    let k = Intrinsics::from_fov_x(39.6f32.to_radians(), 400, 400);
+    let cam = Camera::orbit(30.0, 30.0, 4.031, Vec3::ZERO, k);
+    let opts = nerflex_sim::render::RenderOptions::default();
+    let narrow = narrow_tables(&[&asset]).unwrap();
+    assert!(narrow[0].is_some(), "the drums weights pass the narrow check");
+    let (exact, se) = try_render_scene(&[&asset], &cam, &opts).unwrap();
+    let (fast, sn) = try_render_scene_narrow(&[&asset], &cam, &opts, &narrow).unwrap();
+    assert_eq!(se.pixels_shaded, sn.pixels_shaded);
+    assert!(se.pixels_shaded > 10_000);
+    let mut h = [0u64; 4];
+    for (a, b) in exact.pixels().zip(fast.pixels()) {
+        assert_eq!(a.0[3], b.0[3], "coverage differs");
+        let e = (0..3).map(|c| a.0[c].abs_diff(b.0[c])).max().unwrap();
+        h[usize::from(e).min(3)] += 1;
+    }
+    println!("narrow vs exact render, max RGB difference per pixel: {h:?}");
+    assert_eq!(h[3], 0);
+    assert!((h[0] + h[1]) * 1000 >= 999 * h.iter().sum::<u64>());
+}
