@@ -22,6 +22,7 @@ use core::ptr::addr_of_mut;
 
 use nerflex_core::mck::{Config, Solver};
 use nerflex_core::shader::narrow::NarrowMlp;
+use nerflex_core::shader::{FixedMlp, ViewDir};
 use nerflex_core::units::{Bytes, QualityQ};
 use workload::{ObjectProfile, CONFIGS, OBJECTS, TILE_H, TILE_W, UNIT, UNITS};
 
@@ -107,6 +108,28 @@ static mut SOLVER: PaperSolver = PaperSolver::new();
 static mut TABLES: [[Config; CONFIGS]; OBJECTS] = [[config(0, 0); CONFIGS]; OBJECTS];
 static mut PIXEL_BUF: [[u8; 3]; PIXELS] = [[0; 3]; PIXELS];
 
+/// One pixel, exact shader: a call of its own so `targets/riscv-icount.sh`
+/// can count its instructions.
+#[inline(never)]
+fn pixel_exact(m: &FixedMlp, f0: [u8; 4], f1: [u8; 4], d: ViewDir) -> [u8; 3] {
+    m.shade(f0, f1, d)
+}
+
+/// One pixel, narrow shader (see [`pixel_exact`]).
+#[inline(never)]
+fn pixel_narrow(m: &NarrowMlp, f0: [u8; 4], f1: [u8; 4], d: ViewDir) -> [u8; 3] {
+    m.shade(f0, f1, d)
+}
+
+/// The tile as `workload::shade_tile` shades it, one counted call per pixel.
+fn shade_tile(out: &mut [[u8; 3]], shade: impl Fn([u8; 4], [u8; 4], ViewDir) -> [u8; 3]) {
+    let coords = (0..TILE_H).flat_map(|y| (0..TILE_W).map(move |x| (x, y)));
+    for (px, (x, y)) in out.iter_mut().zip(coords) {
+        let (f0, f1) = workload::texels(x, y);
+        *px = shade(f0, f1, workload::view_dir(x, y));
+    }
+}
+
 fn print_rows(tag: &str, px: &[[u8; 3]]) {
     for (y, row) in px.chunks(TILE_W as usize).enumerate() {
         let _ = write!(Uart, "{tag} y={y} rgb=");
@@ -183,7 +206,7 @@ extern "C" fn main() -> ! {
         generated::MLP_SOURCE,
         workload::mlp_hash(mlp)
     );
-    workload::shade_tile(mlp, px);
+    shade_tile(px, |f0, f1, d| pixel_exact(mlp, f0, f1, d));
     print_rows("row", px);
     println!(
         "tile width={TILE_W} height={TILE_H} fnv={:08x}",
@@ -196,7 +219,7 @@ extern "C" fn main() -> ! {
         workload::narrow_hash(narrow),
         u8::from(generated::NARROW_PASSES)
     );
-    workload::shade_tile_narrow(narrow, px);
+    shade_tile(px, |f0, f1, d| pixel_narrow(narrow, f0, f1, d));
     print_rows("nrow", px);
     println!(
         "ntile width={TILE_W} height={TILE_H} fnv={:08x}",
