@@ -199,9 +199,7 @@ pub fn try_render_scene(
 pub fn narrow_tables(assets: &[&Asset]) -> Result<Vec<Option<NarrowMlp>>, ShaderError> {
     assets
         .iter()
-        .map(|a| {
-            Ok(NarrowMlp::choose(a.mlp.weights(), || check_samples(2048, 8))?.map(|(m, _)| m))
-        })
+        .map(|a| Ok(NarrowMlp::choose(a.mlp.weights(), || check_samples(2048, 8))?.map(|(m, _)| m)))
         .collect()
 }
 

@@ -421,7 +421,11 @@ fn check(target: &str) {
         .enumerate()
     {
         assert_eq!(line.num("y"), y as u64);
-        assert_eq!(line.get("rgb"), hex(host_row), "narrow tile row {y} differs");
+        assert_eq!(
+            line.get("rgb"),
+            hex(host_row),
+            "narrow tile row {y} differs"
+        );
     }
     assert_eq!(
         records(&lines, "ntile")[0].get("fnv"),

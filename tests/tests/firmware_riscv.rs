@@ -33,7 +33,9 @@ fn missing_prerequisite() -> Option<String> {
         .stderr(Stdio::null())
         .status();
     if !qemu.is_ok_and(|s| s.success()) {
-        return Some("qemu-system-riscv32 is not installed (apt-get install qemu-system-misc)".into());
+        return Some(
+            "qemu-system-riscv32 is not installed (apt-get install qemu-system-misc)".into(),
+        );
     }
     let sysroot = Command::new(std::env::var("RUSTC").unwrap_or_else(|_| "rustc".into()))
         .args(["--print", "sysroot"])
@@ -41,7 +43,9 @@ fn missing_prerequisite() -> Option<String> {
         .ok()
         .map(|o| PathBuf::from(String::from_utf8_lossy(&o.stdout).trim()));
     if !sysroot.is_some_and(|s| s.join("lib/rustlib").join(TARGET).is_dir()) {
-        return Some(format!("the Rust target {TARGET} is not installed (rustup target add {TARGET})"));
+        return Some(format!(
+            "the Rust target {TARGET} is not installed (rustup target add {TARGET})"
+        ));
     }
     None
 }
@@ -67,7 +71,10 @@ fn build_and_run() -> (String, Option<i32>) {
         "RISC-V firmware build failed:\n{}",
         String::from_utf8_lossy(&o.stderr)
     );
-    let elf = dir.join("target").join(TARGET).join("release/nerflex-firmware-riscv32");
+    let elf = dir
+        .join("target")
+        .join(TARGET)
+        .join("release/nerflex-firmware-riscv32");
     let mut child = Command::new("qemu-system-riscv32")
         .args(["-machine", "virt", "-nographic", "-bios", "none", "-kernel"])
         .arg(&elf)
@@ -93,7 +100,10 @@ fn build_and_run() -> (String, Option<i32>) {
         }
         std::thread::sleep(Duration::from_millis(10));
     };
-    (reader.join().expect("reader").expect("UTF-8"), status.code())
+    (
+        reader.join().expect("reader").expect("UTF-8"),
+        status.code(),
+    )
 }
 
 /// `record key=value …` lines: (record, fields).
@@ -116,7 +126,11 @@ fn records<'a>(
     lines: &'a [(String, BTreeMap<String, String>)],
     r: &str,
 ) -> Vec<&'a BTreeMap<String, String>> {
-    lines.iter().filter(|(x, _)| x == r).map(|(_, f)| f).collect()
+    lines
+        .iter()
+        .filter(|(x, _)| x == r)
+        .map(|(_, f)| f)
+        .collect()
 }
 
 fn host_weights() -> (MlpWeights, &'static str) {
@@ -157,7 +171,9 @@ fn host_tables() -> Vec<Vec<Config>> {
 }
 
 fn hex(px: &[[u8; 3]]) -> String {
-    px.iter().map(|p| format!("{:02x}{:02x}{:02x}", p[0], p[1], p[2])).collect()
+    px.iter()
+        .map(|p| format!("{:02x}{:02x}{:02x}", p[0], p[1], p[2]))
+        .collect()
 }
 
 #[test]
@@ -181,12 +197,17 @@ fn riscv_firmware_matches_the_host() {
         assert_eq!(l["fnv"], format!("{:08x}", workload::table_hash(t)));
     }
     let refs: Vec<&[Config]> = tables.iter().map(|t| t.as_slice()).collect();
-    let mut solver =
-        Box::new(Solver::<{ workload::OBJECTS }, { workload::CONFIGS }, { workload::UNITS }>::new());
+    let mut solver = Box::new(Solver::<
+        { workload::OBJECTS },
+        { workload::CONFIGS },
+        { workload::UNITS },
+    >::new());
     let plans = records(&lines, "plan");
     assert_eq!(plans.len(), workload::DEVICES.len());
     for (l, d) in plans.iter().zip(&workload::DEVICES) {
-        let s = solver.solve(&refs, d.budget, workload::UNIT).expect("plans");
+        let s = solver
+            .solve(&refs, d.budget, workload::UNIT)
+            .expect("plans");
         let c: Vec<String> = s.choices.iter().map(|c| c.to_string()).collect();
         assert_eq!(l["device"], d.name);
         assert_eq!(l["choices"], c.join(","));
@@ -220,7 +241,11 @@ fn riscv_firmware_matches_the_host() {
         }
         let rows = records(&lines, tag);
         assert_eq!(rows.len(), workload::TILE_H as usize);
-        for (y, (l, host)) in rows.iter().zip(px.chunks(workload::TILE_W as usize)).enumerate() {
+        for (y, (l, host)) in rows
+            .iter()
+            .zip(px.chunks(workload::TILE_W as usize))
+            .enumerate()
+        {
             assert_eq!(l["rgb"], hex(host), "{tag} {y} differs from the host");
         }
         assert_eq!(

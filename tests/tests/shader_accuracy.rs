@@ -250,7 +250,10 @@ fn narrow_batched_render_tracks_the_exact_render() {
     let cam = Camera::orbit(30.0, 30.0, 4.031, Vec3::ZERO, k);
     let opts = nerflex_sim::render::RenderOptions::default();
     let narrow = narrow_tables(&[&asset]).unwrap();
-    assert!(narrow[0].is_some(), "the drums weights pass the narrow check");
+    assert!(
+        narrow[0].is_some(),
+        "the drums weights pass the narrow check"
+    );
     let (exact, se) = try_render_scene(&[&asset], &cam, &opts).unwrap();
     let (fast, sn) = try_render_scene_narrow(&[&asset], &cam, &opts, &narrow).unwrap();
     assert_eq!(se.pixels_shaded, sn.pixels_shaded);

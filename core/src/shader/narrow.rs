@@ -150,7 +150,11 @@ impl<const P: usize, const G: usize, const N: usize> NarrowLayer<P, G, N> {
 
 /// One group's accumulators: per input pair, `G` dual multiply-adds.
 #[inline(always)]
-fn group_dot<const P: usize, const G: usize>(b: &[i32; G], w: &[[u32; G]; P], x: &[u32; P]) -> [i32; G] {
+fn group_dot<const P: usize, const G: usize>(
+    b: &[i32; G],
+    w: &[[u32; G]; P],
+    x: &[u32; P],
+) -> [i32; G] {
     let mut acc = *b;
     for (&xp, wp) in x.iter().zip(w.iter()) {
         for (a, &wv) in acc.iter_mut().zip(wp.iter()) {
@@ -332,6 +336,8 @@ const SIG_BUCKETS: usize = 1 << (28 - SIG_BUCKET_LOG2);
 
 /// `SIG_BASE[b]`: thresholds below bucket `b`'s start (at most one more
 /// lies inside the bucket).
+// Indexing in a const initialiser fails the build, never a run.
+#[allow(clippy::indexing_slicing)]
 const SIG_BASE: [u8; SIG_BUCKETS] = {
     let mut t = [0u8; SIG_BUCKETS];
     let (mut b, mut k) = (0usize, 0usize);
@@ -347,6 +353,7 @@ const SIG_BASE: [u8; SIG_BUCKETS] = {
 };
 
 /// The thresholds and a sentinel no bucketed `z` reaches.
+#[allow(clippy::indexing_slicing)]
 const SIG_NEXT: [i32; 256] = {
     let mut t = [i32::MAX; 256];
     let mut k = 0;
@@ -408,7 +415,11 @@ impl NarrowMlp {
     /// Not `#[inline]`: compiled once, in this crate, at its optimisation level.
     pub fn shade(&self, feat0: [u8; 4], feat1: [u8; 4], dir: ViewDir) -> [u8; 3] {
         let [r, g, b] = self.logits_q24(feat0, feat1, dir);
-        [sigmoid_bucketed(r), sigmoid_bucketed(g), sigmoid_bucketed(b)]
+        [
+            sigmoid_bucketed(r),
+            sigmoid_bucketed(g),
+            sigmoid_bucketed(b),
+        ]
     }
 
     /// Writes `pub const NAME: NarrowMlp = NarrowMlp { … };` (paths assume

@@ -80,7 +80,11 @@ macro_rules! println {
 
 /// Stops QEMU through the `sifive_test` device: 0 → success, else failure.
 fn exit(code: u32) -> ! {
-    let v = if code == 0 { 0x5555 } else { 0x3333 | (code << 16) };
+    let v = if code == 0 {
+        0x5555
+    } else {
+        0x3333 | (code << 16)
+    };
     // SAFETY: the virt machine's test device at 0x10_0000.
     unsafe { core::ptr::write_volatile(0x10_0000 as *mut u32, v) };
     loop {

@@ -98,7 +98,13 @@ fn floor_log2(s: f64) -> i32 {
 /// Quantises one layer: weights `w[i][o]` (effective, real), bias `b[o]`.
 /// `logit`: power-of-two scales and a shift to Q24 instead of the fixed
 /// `>> 16` of a hidden layer.
-fn quantize_layer<const I: usize, const O: usize, const P: usize, const G: usize, const N: usize>(
+fn quantize_layer<
+    const I: usize,
+    const O: usize,
+    const P: usize,
+    const G: usize,
+    const N: usize,
+>(
     layer: u8,
     w: &[[f64; O]; I],
     b: &[f64; O],
@@ -411,7 +417,7 @@ impl ErrorHistogram {
 /// each under `dirs` directions of a Fibonacci sphere.
 pub fn check_samples(texels: u32, dirs: u32) -> impl Iterator<Item = ([u8; 4], [u8; 4], ViewDir)> {
     (0..texels).flat_map(move |t| {
-        let mut s = u64::from(t).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0x5DEE_CE66_D;
+        let mut s = u64::from(t).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0x5_DEEC_E66D;
         for _ in 0..3 {
             s ^= s >> 29;
             s = s.wrapping_mul(0xBF58_476D_1CE4_E5B9);

@@ -139,12 +139,33 @@ fn random_tables(seed: u64) -> NarrowMlp {
         (s >> 32) as u32
     };
     let mut m = NarrowMlp::from_weights(&MlpWeights::ZERO, WeightBits::Sixteen).unwrap();
-    m.l0.w.iter_mut().flatten().flatten().for_each(|v| *v = next());
-    m.l1.w.iter_mut().flatten().flatten().for_each(|v| *v = next());
-    m.l2.w.iter_mut().flatten().flatten().for_each(|v| *v = next());
-    m.l0.bias.iter_mut().flatten().for_each(|v| *v = next() as i32);
-    m.l1.bias.iter_mut().flatten().for_each(|v| *v = next() as i32);
-    m.l2.bias.iter_mut().flatten().for_each(|v| *v = next() as i32);
+    m.l0.w
+        .iter_mut()
+        .flatten()
+        .flatten()
+        .for_each(|v| *v = next());
+    m.l1.w
+        .iter_mut()
+        .flatten()
+        .flatten()
+        .for_each(|v| *v = next());
+    m.l2.w
+        .iter_mut()
+        .flatten()
+        .flatten()
+        .for_each(|v| *v = next());
+    m.l0.bias
+        .iter_mut()
+        .flatten()
+        .for_each(|v| *v = next() as i32);
+    m.l1.bias
+        .iter_mut()
+        .flatten()
+        .for_each(|v| *v = next() as i32);
+    m.l2.bias
+        .iter_mut()
+        .flatten()
+        .for_each(|v| *v = next() as i32);
     m.logit_lshift = [(next() % 40) as u8, (next() % 8) as u8, next() as u8];
     m
 }
@@ -193,7 +214,14 @@ fn bucketed_sigmoid_equals_the_threshold_search_everywhere() {
     for z in -(1i32 << 27)..(1 << 27) {
         assert_eq!(sigmoid_bucketed(z), sigmoid_u8(z), "z = {z}");
     }
-    for z in [i32::MIN, i32::MIN + 1, -(1 << 27) - 1, 1 << 27, (1 << 27) + 1, i32::MAX] {
+    for z in [
+        i32::MIN,
+        i32::MIN + 1,
+        -(1 << 27) - 1,
+        1 << 27,
+        (1 << 27) + 1,
+        i32::MAX,
+    ] {
         assert_eq!(sigmoid_bucketed(z), sigmoid_u8(z), "z = {z}");
     }
 }
