@@ -364,7 +364,7 @@ const SIG_NEXT: [i32; 256] = {
     t
 };
 
-/// [`sigmoid_u8`] in constant time: a bucket table gives the count of
+/// [`sigmoid_u8`](crate::shader::sigmoid_u8) in constant time: a bucket table gives the count of
 /// thresholds below the bucket, one comparison adds the bucket's own.
 /// Equal to `sigmoid_u8` for every `z` (checked exhaustively in the tests).
 #[inline(always)]
