@@ -30,5 +30,9 @@ for dev in iphone13 pixel4; do
 done
 ir=$(count pixel count_pixel)
 echo "| one shaded pixel (fixed-point MLP, 480 multiply-adds) | $ir | $(cat "$out/pixel.txt") |"
+ir=$(count narrow-pixel count_narrow_pixel)
+echo "| one shaded pixel (narrow MLP, 16-bit, 496 multiply-adds incl. padding) | $ir | $(cat "$out/narrow-pixel.txt") |"
+ir=$(count narrow-batch count_narrow_batch)
+echo "| 8 pixels through the AVX2 narrow batch (inputs packed) | $ir ($((ir / 8)) per pixel) | $(cut -c1-60 "$out/narrow-batch.txt") … |"
 ir=$(count tile count_tile)
 echo "| 16 × 16 tile incl. per-pixel inputs | $ir ($((ir / 256)) per pixel) | $(cat "$out/tile.txt") |"

@@ -3,7 +3,9 @@
 # firmware for each Cortex-M target, reads its sections with GNU `size -A`
 # (binutils; `llvm-size -A` or `arm-none-eabi-size -A` print the same) and
 # runs it under QEMU (mps2-an386) for the stack-painting and table-size lines
-# the firmware prints itself. Prints a Markdown table. Usage: targets/footprint.sh
+# the firmware prints itself, then the RISC-V firmware (targets/riscv32,
+# sections only: it does not paint its stack). Prints Markdown tables.
+# Usage: targets/footprint.sh
 #
 # flash      = .vector_table + .text + .rodata + .data (initial values live in flash)
 # static RAM = .data + .bss + .uninit (the stack comes on top: see the stack columns)
@@ -28,8 +30,8 @@ field() { # line-record key <<< output
     awk -v r="$1" -v k="$2" '$1 == r { for (i = 2; i <= NF; i++) { split($i, kv, "="); if (kv[1] == k) print kv[2] } }'
 }
 
-echo "| target | core | flash (text + rodata + vectors) | static RAM (data + bss) | of which solver tables | peak stack: profiler (5 tables) | peak stack: solver | peak stack: one pixel | peak stack: 16×16 tile |"
-echo "|---|---|---|---|---|---|---|---|---|"
+echo "| target | core | flash (text + rodata + vectors) | static RAM (data + bss) | of which solver tables | peak stack: profiler (5 tables) | peak stack: solver | peak stack: one pixel | peak stack: 16×16 tile | peak stack: one pixel, narrow | peak stack: 16×16 tile, narrow |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|"
 breakdown=""
 for t in thumbv7em-none-eabihf thumbv6m-none-eabi; do
     cargo build --release --locked -q ${opt[@]+"${opt[@]}"} --target "$t"
@@ -55,7 +57,7 @@ for t in thumbv7em-none-eabihf thumbv6m-none-eabi; do
             s[c] += sz; all += sz }
             END { printf "| `%s` | %d B | %d B | %d B | %d B |\n", t, s[1], s[2], s[3], s[4] + text - all }')
     breakdown+=$'\n'
-    echo "| \`$t\` | $core | $((vt + tx + ro + da)) B ($tx + $ro + $vt$( [ "$da" != 0 ] && echo " + $da")) | $((da + bs + un)) B | $(field memory solver_static_bytes <<<"$run") B | $(field stack profile_bytes <<<"$run") B | $(field stack solver_bytes <<<"$run") B | $(field stack shade_pixel_bytes <<<"$run") B | $(field stack shade_tile_bytes <<<"$run") B |"
+    echo "| \`$t\` | $core | $((vt + tx + ro + da)) B ($tx + $ro + $vt$( [ "$da" != 0 ] && echo " + $da")) | $((da + bs + un)) B | $(field memory solver_static_bytes <<<"$run") B | $(field stack profile_bytes <<<"$run") B | $(field stack solver_bytes <<<"$run") B | $(field stack shade_pixel_bytes <<<"$run") B | $(field stack shade_tile_bytes <<<"$run") B | $(field stack narrow_pixel_bytes <<<"$run") B | $(field stack narrow_tile_bytes <<<"$run") B |"
 done
 
 echo
@@ -64,3 +66,18 @@ echo
 echo "| target | nerflex (core + firmware) | compiler builtins + libm (soft float, 64/128-bit division, memcpy) | formatting (core::fmt, printing numbers) | runtime, panic, other |"
 echo "|---|---|---|---|---|"
 printf "%s" "$breakdown"
+
+# RISC-V (QEMU virt): flash = what a ROM would hold (text + rodata + data).
+echo
+echo "| target | core | code + constants (text + rodata + data) | static RAM (data + bss) | stack reserved |"
+echo "|---|---|---|---|---|"
+(
+    cd ../riscv32
+    cargo build --release --locked -q
+    elf=target/riscv32imac-unknown-none-elf/release/nerflex-firmware-riscv32
+    run=$(timeout 60 qemu-system-riscv32 -machine virt -nographic -bios none -kernel "$elf")
+    grep -q '^done' <<<"$run" || { echo "riscv32: the firmware did not finish:" >&2; echo "$run" >&2; exit 1; }
+    tx=$(sec "$elf" .text); ro=$(sec "$elf" .rodata); da=$(sec "$elf" .data)
+    bs=$(sec "$elf" .bss); st=$(sec "$elf" .stack)
+    echo "| \`riscv32imac-unknown-none-elf\` | RV32IMAC (QEMU virt) | $((tx + ro + da)) B ($tx + $ro + $da) | $((da + bs)) B | $st B |"
+)

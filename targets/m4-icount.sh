@@ -28,7 +28,8 @@ targets=("$@")
 funcs=(
     "five profiles → 5 × 45 configurations|nerflex_firmware_m4::evaluate_profiles"
     "one MCK solve (5 × 45, 0.1 MB units), both budgets|nerflex_firmware_m4::plan"
-    "one shaded pixel (FixedMlp::shade), 257 calls|nerflex_core::shader::FixedMlp::shade"
+    "one shaded pixel, exact shader (FixedMlp::shade)|nerflex_core::shader::FixedMlp::shade"
+    "one shaded pixel, narrow shader (NarrowMlp::shade)|nerflex_core::shader::narrow::NarrowMlp::shade"
 )
 
 echo "| target | operation | calls | instructions per call: min | mean | max |"

@@ -28,6 +28,7 @@
 //! The per-pixel path ([`FixedMlp::shade`]) uses integers only, no heap, and
 //! wrapping arithmetic so that even a hand-made table cannot panic.
 
+pub mod narrow;
 mod sigmoid;
 
 use core::fmt;

@@ -1,6 +1,6 @@
 //! Full 800×800 frames of the real drums shape at a few turntable angles:
-//! fixed-point and `f32` shading, and the coverage-only pass the device
-//! simulator uses. Tiles run in parallel on all cores (rayon); a
+//! fixed-point (exact, per pixel), narrow (batched: AVX2 when present) and
+//! `f32` shading, and the coverage-only pass the device simulator uses. Tiles run in parallel on all cores (rayon); a
 //! single-thread pool gives the one-core figure.
 //!
 //! Needs `../shared/data` (skips otherwise).
@@ -10,7 +10,9 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use nerflex_core::raster::glam::Vec3;
 use nerflex_sim::asset::Asset;
 use nerflex_sim::camera::{Camera, Intrinsics};
-use nerflex_sim::render::{coverage, rayon, render, RenderOptions};
+use nerflex_sim::render::{
+    coverage, narrow_tables, rayon, render, try_render_scene_narrow, RenderOptions,
+};
 use std::hint::black_box;
 
 const ANGLES: [f32; 3] = [0.0, 30.0, 120.0];
@@ -29,6 +31,11 @@ fn bench(c: &mut Criterion) {
         .num_threads(1)
         .build()
         .expect("pool");
+    let narrow = narrow_tables(&[&asset]).expect("narrow tables");
+    let narrow_render = |cam: &Camera| {
+        try_render_scene_narrow(&[&asset], cam, &RenderOptions::default(), &narrow)
+            .expect("renders")
+    };
     let mut g = c.benchmark_group("render_drums_800");
     g.sample_size(20);
     for angle in ANGLES {
@@ -46,6 +53,12 @@ fn bench(c: &mut Criterion) {
         });
         g.bench_function(format!("fixed_one_core/{angle}"), |b| {
             b.iter(|| one.install(|| black_box(render(&asset, &cam, &RenderOptions::default()))))
+        });
+        g.bench_function(format!("narrow_one_core/{angle}"), |b| {
+            b.iter(|| one.install(|| black_box(narrow_render(&cam))))
+        });
+        g.bench_function(format!("narrow/{angle}"), |b| {
+            b.iter(|| black_box(narrow_render(&cam)))
         });
         g.bench_function(format!("coverage/{angle}"), |b| {
             b.iter(|| black_box(coverage(&asset, &cam)))

@@ -1,6 +1,10 @@
-//! Shader throughput on one core: fixed-point vs `f32` (and the `f64`
-//! reference), in million shaded pixels per second, and the multiply-adds
-//! per second that implies (the MLP is 480 multiply-adds per pixel).
+//! Shader throughput on one core: the exact fixed-point shader, the narrow
+//! one (16-bit, per pixel and batched: portable and AVX2), `f32` and the
+//! `f64` reference, in million shaded pixels per second, and the
+//! multiply-adds per second that implies (the MLP is 480 multiply-adds per
+//! pixel), beside this machine's peak for the batched shader's instruction
+//! (`vpmaddwd`: 16 multiply-adds per instruction, 2 per cycle on the
+//! Zen/Skylake ports, at the clock `/proc/cpuinfo` reports).
 //!
 //! Inputs are real occupied texels of the drums atlas with the drums MLP
 //! when `../shared/data` is present, else pseudo-random texels and weights.
@@ -8,6 +12,8 @@
 //! `cargo bench -p nerflex-hostbench --bench shader`
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
+use nerflex_core::shader::narrow::batch::{self, BatchInput, LANES};
+use nerflex_core::shader::narrow::{NarrowMlp, WeightBits, INPUT_PAIRS};
 use nerflex_core::shader::{shade_f32, shade_f64, FixedMlp, MlpWeights, ViewDir, MACS_PER_PIXEL};
 use std::hint::black_box;
 use std::time::Instant;
@@ -85,7 +91,7 @@ fn input() -> Input {
 }
 
 /// A plain timed loop, printed beside criterion's numbers: Mpix/s and MAC/s.
-fn report(name: &str, mut f: impl FnMut() -> u64) {
+fn report(name: &str, mut f: impl FnMut() -> u64) -> f64 {
     let _ = f(); // warm up
     let t = Instant::now();
     let mut n = 0u64;
@@ -97,9 +103,18 @@ fn report(name: &str, mut f: impl FnMut() -> u64) {
     let s = t.elapsed().as_secs_f64();
     let mpix = n as f64 / s / 1e6;
     println!(
-        "{name:>6}: {mpix:7.2} Mpix/s on one core = {:6.2} G multiply-adds/s ({MACS_PER_PIXEL} per pixel; {reps} reps)",
+        "{name:>22}: {mpix:7.2} Mpix/s on one core = {:6.2} G multiply-adds/s ({MACS_PER_PIXEL} per pixel; {reps} reps)",
         mpix * MACS_PER_PIXEL as f64 / 1e3
     );
+    mpix
+}
+
+/// The CPU clock `/proc/cpuinfo` reports (GHz), if any.
+fn cpu_ghz() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/cpuinfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("cpu MHz"))?;
+    let mhz: f64 = line.split(':').nth(1)?.trim().parse().ok()?;
+    Some(mhz / 1e3)
 }
 
 fn bench(c: &mut Criterion) {
@@ -137,7 +152,56 @@ fn bench(c: &mut Criterion) {
         black_box(acc);
         inp.texels.len() as u64
     };
-    report("fixed", run_fixed);
+    let narrow = NarrowMlp::from_weights(&inp.weights, WeightBits::Sixteen).unwrap();
+    let run_narrow = || {
+        let mut acc = 0u64;
+        for (t, d) in inp.texels.iter().zip(&inp.dirs_q) {
+            let c = narrow.shade(black_box(t.0), black_box(t.1), black_box(*d));
+            acc += c[0] as u64;
+        }
+        black_box(acc);
+        inp.texels.len() as u64
+    };
+    // Batches: inputs packed per pixel (as `render` does), then shaded.
+    let run_batch = |simd: bool| {
+        let mut acc = 0u64;
+        let mut x: BatchInput = [[0; LANES]; INPUT_PAIRS];
+        for (chunk, dirs) in inp.texels.chunks(LANES).zip(inp.dirs_q.chunks(LANES)) {
+            for (lane, (t, d)) in chunk.iter().zip(dirs).enumerate() {
+                batch::set_lane(&mut x, lane, black_box(t.0), black_box(t.1), black_box(*d));
+            }
+            #[allow(unsafe_code)]
+            // SAFETY: `simd` is only set when AVX2 was detected.
+            let c = if simd {
+                unsafe { batch::avx2::shade(&narrow, &x) }
+            } else {
+                batch::shade_portable(&narrow, &x)
+            };
+            acc += c[0][0] as u64;
+        }
+        black_box(acc);
+        inp.texels.len() as u64
+    };
+    let avx2 = std::arch::is_x86_feature_detected!("avx2");
+    let fixed_mpix = report("fixed (exact)", run_fixed);
+    report("narrow", run_narrow);
+    report("narrow batch portable", || run_batch(false));
+    if avx2 {
+        let mpix = report("narrow batch AVX2", || run_batch(true));
+        println!(
+            "narrow batch AVX2 / fixed (exact): {:.2}× the pixels per second per core",
+            mpix / fixed_mpix
+        );
+        if let Some(ghz) = cpu_ghz() {
+            let peak = 32.0 * ghz;
+            println!(
+                "this machine's peak for vpmaddwd: 16 MAC × 2 per cycle × {ghz:.2} GHz = {peak:.0} G MAC/s per core; the AVX2 batch reaches {:.1} % of it",
+                100.0 * mpix * MACS_PER_PIXEL as f64 / 1e3 / peak
+            );
+        }
+    } else {
+        println!("narrow batch AVX2: not run (this CPU has no AVX2)");
+    }
     report("f32", run_f32);
     report("f64", run_f64);
     let mut g = c.benchmark_group("shader");
@@ -145,6 +209,14 @@ fn bench(c: &mut Criterion) {
     g.bench_function("fixed", |b| {
         b.iter_batched(|| (), |_| run_fixed(), BatchSize::SmallInput)
     });
+    g.bench_function("narrow", |b| {
+        b.iter_batched(|| (), |_| run_narrow(), BatchSize::SmallInput)
+    });
+    if avx2 {
+        g.bench_function("narrow_batch_avx2", |b| {
+            b.iter_batched(|| (), |_| run_batch(true), BatchSize::SmallInput)
+        });
+    }
     g.bench_function("f32", |b| {
         b.iter_batched(|| (), |_| run_f32(), BatchSize::SmallInput)
     });

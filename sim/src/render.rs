@@ -8,6 +8,13 @@
 //! shades its covered pixels once. `--float` shades the same G-buffer with
 //! the `f32` MLP ([`shade_f32`]) instead.
 //!
+//! [`try_render_scene_narrow`] shades with the core's narrow shader
+//! instead (16-bit weights and activations, [`nerflex_core::shader::narrow`]),
+//! eight pixels at a time: AVX2 when the CPU has it (run-time detection),
+//! else the portable batch — bit-identical to each other and to the narrow
+//! shader's per-pixel path. Objects whose weights fail the narrow shader's
+//! accuracy check ([`narrow_tables`]) keep the exact shader.
+//!
 //! Output: `rgb` composited over white (MobileNeRF's viewer convention;
 //! coverage is binary, so a pixel is either the MLP's colour or white) and
 //! `alpha` = coverage (255 or 0).
@@ -18,7 +25,9 @@ use image::{Rgba, RgbaImage};
 use nerflex_core::raster::{
     Part, RasterError, Sample, ScreenQuad, TileRenderer, TileStats, View, BACKGROUND,
 };
-use nerflex_core::shader::{shade_f32, MlpWeights};
+use nerflex_core::shader::narrow::batch::{self, BatchInput, LANES};
+use nerflex_core::shader::narrow::{check_samples, NarrowMlp, INPUT_PAIRS};
+use nerflex_core::shader::{shade_f32, MlpWeights, ShaderError};
 /// Re-exported: renders run on the current rayon pool, so a caller can
 /// pick the thread count with `rayon::ThreadPool::install` (e.g. one core).
 pub use rayon;
@@ -181,11 +190,148 @@ pub fn try_render_scene(
     camera: &Camera,
     opts: &RenderOptions,
 ) -> Result<(RgbaImage, RenderStats), RasterError> {
+    render_with(assets, camera, opts, None)
+}
+
+/// The narrow shader's tables for each asset, `None` where its weights fail
+/// the accuracy check (`NarrowMlp::choose` on `check_samples(2048, 8)`: the
+/// firmware build's check).
+pub fn narrow_tables(assets: &[&Asset]) -> Result<Vec<Option<NarrowMlp>>, ShaderError> {
+    assets
+        .iter()
+        .map(|a| Ok(NarrowMlp::choose(a.mlp.weights(), || check_samples(2048, 8))?.map(|(m, _)| m)))
+        .collect()
+}
+
+/// [`try_render_scene`] with the narrow shader, batched (see the module
+/// docs); `narrow[i]` are asset `i`'s tables from [`narrow_tables`]
+/// (missing or `None`: the exact shader). `opts.float` still selects `f32`.
+pub fn try_render_scene_narrow(
+    assets: &[&Asset],
+    camera: &Camera,
+    opts: &RenderOptions,
+    narrow: &[Option<NarrowMlp>],
+) -> Result<(RgbaImage, RenderStats), RasterError> {
+    render_with(assets, camera, opts, Some(narrow))
+}
+
+/// Whether the batched narrow shader may use AVX2 on this CPU.
+fn avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Shades one batch (lanes `0..slots.len()` of `x`) into `out[slot]`.
+fn flush_batch(m: &NarrowMlp, x: &BatchInput, slots: &[usize], out: &mut [[u8; 4]], avx2: bool) {
+    #[cfg(target_arch = "x86_64")]
+    let rgb = if avx2 {
+        // SAFETY: `avx2` is true only when the CPU reports AVX2.
+        #[allow(unsafe_code)]
+        unsafe {
+            batch::avx2::shade(m, x)
+        }
+    } else {
+        batch::shade_portable(m, x)
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let rgb = {
+        let _ = avx2;
+        batch::shade_portable(m, x)
+    };
+    for (&i, c) in slots.iter().zip(rgb) {
+        if let Some(p) = out.get_mut(i) {
+            *p = px(Some(c));
+        }
+    }
+}
+
+/// A tile shaded by the narrow shader in batches of [`LANES`] pixels of the
+/// same MLP; parts without narrow tables take the exact per-pixel path.
+fn shade_tile_narrow(
+    tile: &TileRenderer<TILE, TILE>,
+    view: &View,
+    parts: &[Part],
+    narrow: &[Option<&NarrowMlp>],
+    avx2: bool,
+) -> Vec<[u8; 4]> {
+    let (x0, y0, w, h) = tile.rect();
+    let mut out = vec![px(None); (w * h) as usize];
+    let mut x: BatchInput = [[0; LANES]; INPUT_PAIRS];
+    let mut slots = [0usize; LANES];
+    let mut n = 0;
+    let mut cur: Option<&NarrowMlp> = None;
+    for ty in 0..h {
+        for tx in 0..w {
+            let Some(s) = tile.sample(tx, ty) else {
+                continue;
+            };
+            let i = (ty * w + tx) as usize;
+            let (Some(part), m) = (
+                parts.get(s.part as usize),
+                narrow.get(s.part as usize).copied().flatten(),
+            ) else {
+                continue;
+            };
+            let Some(m) = m else {
+                out[i] = px(tile.shade_pixel(view, parts, tx, ty));
+                continue;
+            };
+            if let Some(c) = cur.filter(|c| !std::ptr::eq(*c, m)) {
+                flush_batch(c, &x, &slots[..n], &mut out, avx2);
+                n = 0;
+            }
+            cur = Some(m);
+            let (f0, f1) = part
+                .atlas
+                .texel(u32::from(s.texel[0]), u32::from(s.texel[1]));
+            batch::set_lane(&mut x, n, f0, f1, view.pixel_dir(x0 + tx, y0 + ty));
+            slots[n] = i;
+            n += 1;
+            if n == LANES {
+                flush_batch(m, &x, &slots, &mut out, avx2);
+                n = 0;
+            }
+        }
+    }
+    if let (Some(m), true) = (cur, n > 0) {
+        // Lanes n.. hold stale inputs; their results are dropped.
+        flush_batch(m, &x, &slots[..n], &mut out, avx2);
+    }
+    out
+}
+
+fn render_with(
+    assets: &[&Asset],
+    camera: &Camera,
+    opts: &RenderOptions,
+    narrow: Option<&[Option<NarrowMlp>]>,
+) -> Result<(RgbaImage, RenderStats), RasterError> {
     let start = Instant::now();
     let view = view_of(camera)?;
     let (parts, weights) = parts(assets);
+    // Narrow tables per part (each shape of asset i uses asset i's).
+    let narrow_parts: Option<Vec<Option<&NarrowMlp>>> = narrow.map(|n| {
+        assets
+            .iter()
+            .enumerate()
+            .flat_map(|(i, a)| {
+                let m = n.get(i).and_then(|m| m.as_ref());
+                a.shapes.iter().map(move |_| m)
+            })
+            .collect()
+    });
+    let avx2 = avx2();
     let shade = |tile: &TileRenderer<TILE, TILE>| -> Vec<[u8; 4]> {
         let (_, _, w, h) = tile.rect();
+        if let (false, Some(np)) = (opts.float, &narrow_parts) {
+            return shade_tile_narrow(tile, &view, &parts, np, avx2);
+        }
         let mut out = Vec::with_capacity((w * h) as usize);
         if opts.float {
             tile.for_each_sample(|x, y, s: Option<Sample>| {

@@ -11,6 +11,13 @@
 //!   build still succeeds: it warns and embeds the deterministic synthetic
 //!   weight set of `src/workload.rs`, and the firmware prints
 //!   `mlp source=synthetic`.
+//! - `NARROW`, `NARROW_CHECK`, `NARROW_PASSES`: the same weights as the
+//!   core's narrow tables (16-bit weights and activations, 32-bit
+//!   accumulators: `NarrowMlp`), chosen by `NarrowMlp::choose` — the
+//!   narrowest weight width whose error against the `f64` reference on
+//!   `check_samples(2048, 8)` meets the accuracy criterion. If no width
+//!   passes, the 16-bit tables are embedded with `NARROW_PASSES = false`
+//!   (the firmware still runs them, so their cost is measured, and says so).
 //! - `PROFILES`: the five fitted profiles of
 //!   `examples/scenes/five_objects_profile.json`.
 //!
@@ -21,6 +28,7 @@ use std::path::{Path, PathBuf};
 use std::{env, fs};
 
 use super::workload;
+use nerflex_core::shader::narrow::{check_samples, NarrowMlp, WeightBits};
 use nerflex_core::shader::{FixedMlp, MlpWeights};
 
 type BoxError = Box<dyn std::error::Error>;
@@ -98,6 +106,38 @@ fn mlp_source(manifest: &Path, src: &mut String) -> Result<(), BoxError> {
         "/// The fixed-point MLP tables, converted on the host at build time."
     )?;
     fixed.write_rust(src, "MLP")?;
+    let samples = || check_samples(2048, 8);
+    let (narrow, check, passes) = match NarrowMlp::choose(&weights, samples)
+        .map_err(|e| format!("lego MLP: {e}"))?
+    {
+        Some((m, h)) => (m, h, true),
+        None => {
+            let m = NarrowMlp::from_weights(&weights, WeightBits::Sixteen)
+                .map_err(|e| format!("lego MLP: {e}"))?;
+            let h = m.error_histogram(&weights, samples());
+            println!(
+                    "cargo:warning=the narrow shader fails the accuracy check on these weights ({:?}); embedded anyway, marked NARROW_PASSES = false",
+                    h.counts
+                );
+            (m, h, false)
+        }
+    };
+    writeln!(
+        src,
+        "/// The narrow tables (16-bit, `SMLAD` form), converted at build time."
+    )?;
+    narrow.write_rust(src, "NARROW")?;
+    writeln!(
+        src,
+        "/// Error histogram of `NARROW` (0, 1, 2, ≥3 steps) on `check_samples(2048, 8)`."
+    )?;
+    writeln!(
+        src,
+        "pub const NARROW_CHECK: [u64; 4] = {:?};",
+        check.counts
+    )?;
+    writeln!(src, "/// Whether `NARROW` meets the accuracy criterion.")?;
+    writeln!(src, "pub const NARROW_PASSES: bool = {passes};")?;
     Ok(())
 }
 

@@ -3,7 +3,9 @@
 //! `mps2-an386` machine, parses its line output and checks that the board
 //! computed exactly what the host computes — the same configuration tables
 //! (fitted profiles evaluated by the fixed-point profiler), the same plans
-//! (choices and totals) and bit-identical shaded pixels.
+//! (choices and totals) and bit-identical shaded pixels, from both the exact
+//! shader and the narrow one (16-bit, `SMLAD` on the M4, portable code on
+//! the M0 and the host: all three must agree bit for bit).
 //!
 //! The Cortex-M0 build (`thumbv6m-none-eabi`, run on the same machine: ARMv6-M
 //! is a subset of ARMv7-M) is checked the same way. Without
@@ -15,7 +17,8 @@ mod workload;
 
 use nerflex_core::mck::{Config, Solver};
 use nerflex_core::profiler::ConfigSpace;
-use nerflex_core::shader::FixedMlp;
+use nerflex_core::shader::narrow::{check_samples, NarrowMlp, WeightBits};
+use nerflex_core::shader::{FixedMlp, MlpWeights};
 use nerflex_core::units::{Bytes, QualityQ};
 use std::collections::BTreeMap;
 use std::io::Read;
@@ -238,23 +241,38 @@ fn host_objects() -> Vec<HostObject> {
         .collect()
 }
 
-/// The MLP the firmware should have embedded, and its source name.
-fn host_mlp() -> (FixedMlp, &'static str) {
+/// The weights the firmware should have embedded, and their source name.
+fn host_weights() -> (MlpWeights, &'static str) {
     match nerflex_sim::data::shared_data_dir() {
         Some(data) => {
             let path = data.join("mobilenerf/weights/lego_mlp.json");
             let (w, _) = nerflex_sim::asset::mlp_json::read(&path).expect("lego_mlp.json reads");
-            (
-                FixedMlp::from_weights(&w).expect("lego MLP converts"),
-                "lego_mlp.json",
-            )
+            (w, "lego_mlp.json")
         }
         None => {
             eprintln!("note: no shared data: expecting the synthetic weight set");
-            (
-                FixedMlp::from_weights(&workload::synthetic_weights()).expect("converts"),
-                "synthetic",
-            )
+            (workload::synthetic_weights(), "synthetic")
+        }
+    }
+}
+
+/// The MLP the firmware should have embedded, and its source name.
+fn host_mlp() -> (FixedMlp, &'static str) {
+    let (w, source) = host_weights();
+    (FixedMlp::from_weights(&w).expect("MLP converts"), source)
+}
+
+/// The narrow tables the build script should have chosen, their check
+/// histogram and whether they pass (as `gen.rs` decides).
+fn host_narrow() -> (NarrowMlp, [u64; 4], bool) {
+    let (w, _) = host_weights();
+    let samples = || check_samples(2048, 8);
+    match NarrowMlp::choose(&w, samples).expect("converts") {
+        Some((m, h)) => (m, h.counts, true),
+        None => {
+            let m = NarrowMlp::from_weights(&w, WeightBits::Sixteen).expect("converts");
+            let h = m.error_histogram(&w, samples());
+            (m, h.counts, false)
         }
     }
 }
@@ -382,6 +400,38 @@ fn check(target: &str) {
         format!("{:08x}", workload::pixels_hash(&px))
     );
 
+    // The same tile from the narrow shader, bit for bit.
+    let (narrow, counts, passes) = host_narrow();
+    let n = &records(&lines, "narrow")[0];
+    assert_eq!(n.get("source"), source);
+    assert_eq!(
+        n.get("fnv"),
+        format!("{:08x}", workload::narrow_hash(&narrow)),
+        "the firmware's narrow tables differ from the host's"
+    );
+    let [c0, c1, c2, c3] = counts;
+    assert_eq!(n.get("check"), format!("{c0},{c1},{c2},{c3}"));
+    assert_eq!(n.num("passes"), u64::from(passes));
+    workload::shade_tile_narrow(&narrow, &mut px);
+    let rows = records(&lines, "nrow");
+    assert_eq!(rows.len(), workload::TILE_H as usize);
+    for (y, (line, host_row)) in rows
+        .iter()
+        .zip(px.chunks(workload::TILE_W as usize))
+        .enumerate()
+    {
+        assert_eq!(line.num("y"), y as u64);
+        assert_eq!(
+            line.get("rgb"),
+            hex(host_row),
+            "narrow tile row {y} differs"
+        );
+    }
+    assert_eq!(
+        records(&lines, "ntile")[0].get("fnv"),
+        format!("{:08x}", workload::pixels_hash(&px))
+    );
+
     // 4. The measured costs are present and plausible.
     let stack = &records(&lines, "stack")[0];
     for key in [
@@ -389,6 +439,8 @@ fn check(target: &str) {
         "solver_bytes",
         "shade_pixel_bytes",
         "shade_tile_bytes",
+        "narrow_pixel_bytes",
+        "narrow_tile_bytes",
     ] {
         let v = stack.num(key); // a `>=` (window exhausted) fails to parse
         assert!(v > 0 && v < 64 * 1024, "{key} = {v}");

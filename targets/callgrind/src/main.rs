@@ -22,6 +22,7 @@ mod workload;
 mod generated {
     use crate::workload::ObjectProfile;
     use nerflex_core::profiler::{Family, Params};
+    use nerflex_core::shader::narrow::{NarrowLayer, NarrowMlp};
     use nerflex_core::shader::{FixedLayer, FixedMlp};
     include!(concat!(env!("OUT_DIR"), "/generated.rs"));
 }
@@ -68,6 +69,34 @@ fn count_solve(
 #[inline(never)]
 fn count_pixel(mlp: &FixedMlp, f0: [u8; 4], f1: [u8; 4], dir: ViewDir) -> [u8; 3] {
     mlp.shade(f0, f1, dir)
+}
+
+#[inline(never)]
+fn count_narrow_pixel(
+    mlp: &nerflex_core::shader::narrow::NarrowMlp,
+    f0: [u8; 4],
+    f1: [u8; 4],
+    dir: ViewDir,
+) -> [u8; 3] {
+    mlp.shade(f0, f1, dir)
+}
+
+/// Eight pixels through the AVX2 batch (inputs packed first, as `render` does).
+#[inline(never)]
+fn count_narrow_batch(
+    mlp: &nerflex_core::shader::narrow::NarrowMlp,
+    px: &[([u8; 4], [u8; 4], ViewDir); 8],
+) -> [[u8; 3]; 8] {
+    use nerflex_core::shader::narrow::batch;
+    let mut x = [[0u32; batch::LANES]; nerflex_core::shader::narrow::INPUT_PAIRS];
+    for (lane, &(f0, f1, d)) in px.iter().enumerate() {
+        batch::set_lane(&mut x, lane, f0, f1, d);
+    }
+    // SAFETY: only called after AVX2 was detected.
+    #[allow(unsafe_code)]
+    unsafe {
+        batch::avx2::shade(mlp, &x)
+    }
 }
 
 #[inline(never)]
@@ -127,6 +156,28 @@ fn main() -> ExitCode {
                 generated::MLP_SOURCE
             );
         }
+        "narrow-pixel" => {
+            let (f0, f1) = workload::texels(3, 5);
+            let dir = workload::view_dir(3, 5);
+            let narrow = black_box(&generated::NARROW);
+            let rgb = count_narrow_pixel(narrow, black_box(f0), black_box(f1), black_box(dir));
+            println!(
+                "narrow pixel x=3 y=5 rgb={rgb:?} (mlp source={})",
+                generated::MLP_SOURCE
+            );
+        }
+        "narrow-batch" => {
+            if !std::arch::is_x86_feature_detected!("avx2") {
+                eprintln!("this CPU has no AVX2");
+                return ExitCode::FAILURE;
+            }
+            let px: [_; 8] = std::array::from_fn(|i| {
+                let (f0, f1) = workload::texels(i as u32, 5);
+                (f0, f1, workload::view_dir(i as u32, 5))
+            });
+            let rgb = count_narrow_batch(black_box(&generated::NARROW), black_box(&px));
+            println!("narrow batch y=5 x=0..8 rgb={rgb:?}");
+        }
         "tile" => {
             let mut px = vec![[0u8; 3]; (TILE_W * TILE_H) as usize];
             count_tile(mlp, &mut px);
@@ -137,7 +188,7 @@ fn main() -> ExitCode {
             );
         }
         _ => {
-            eprintln!("usage: nerflex-count profiles|solve-iphone13|solve-pixel4|pixel|tile");
+            eprintln!("usage: nerflex-count profiles|solve-iphone13|solve-pixel4|pixel|narrow-pixel|narrow-batch|tile");
             return ExitCode::FAILURE;
         }
     }

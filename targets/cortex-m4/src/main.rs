@@ -7,7 +7,9 @@
 //! 2. the exact MCK plan for the iPhone 13 (240 MB) and Pixel 4 (150 MB)
 //!    budgets in 0.1 MB units, with `Solver<5, 45, 2400>` in a static;
 //! 3. a 16 × 16 tile of texels shaded by the fixed-point lego MLP
-//!    (converted from `lego_mlp.json` at build time);
+//!    (converted from `lego_mlp.json` at build time), once with the exact
+//!    shader (`FixedMlp`, 32 × 32 → 64-bit products) and once with the
+//!    narrow one (`NarrowMlp`, 16-bit, `SMLAD` on ARMv7E-M);
 //! 4. the peak stack of the profiler, the solver and the shader (stack
 //!    painting) and the sizes of the tables.
 //!
@@ -30,6 +32,7 @@ use cortex_m_rt::{entry, exception, ExceptionFrame};
 use cortex_m_semihosting::{debug, hprintln, nr, syscall1};
 use nerflex_core::mck::{Config, MckError, Solver};
 use nerflex_core::profiler::ProfileError;
+use nerflex_core::shader::narrow::NarrowMlp;
 use nerflex_core::shader::FixedMlp;
 use nerflex_core::units::{Bytes, QualityQ};
 use panic_semihosting as _;
@@ -39,6 +42,7 @@ use workload::{Device, ObjectProfile, CONFIGS, OBJECTS, TILE_H, TILE_W, UNIT, UN
 mod generated {
     use crate::workload::ObjectProfile;
     use nerflex_core::profiler::{Family, Params};
+    use nerflex_core::shader::narrow::{NarrowLayer, NarrowMlp};
     use nerflex_core::shader::{FixedLayer, FixedMlp};
     include!(concat!(env!("OUT_DIR"), "/generated.rs"));
 }
@@ -108,6 +112,42 @@ fn shade_tile(mlp: &FixedMlp, out: &mut [[u8; 3]; PIXELS]) {
     workload::shade_tile(mlp, out);
 }
 
+/// [`shade_one`] with the narrow shader.
+fn shade_one_narrow(mlp: &NarrowMlp, x: u32, y: u32) -> ([u8; 3], stack::Peak) {
+    let (f0, f1) = workload::texels(x, y);
+    let dir = workload::view_dir(x, y);
+    // `NarrowMlp::shade` is not inlined either.
+    stack::measure(|| mlp.shade(core::hint::black_box(f0), f1, dir))
+}
+
+#[inline(never)]
+fn shade_tile_narrow(mlp: &NarrowMlp, out: &mut [[u8; 3]; PIXELS]) {
+    workload::shade_tile_narrow(mlp, out);
+}
+
+/// Prints the tile as `<tag> y=… rgb=<hex>` lines.
+fn print_rows(tag: &str, px: &[[u8; 3]; PIXELS]) {
+    for y in 0..TILE_H {
+        let mut hex = [0u8; 6 * TILE_W as usize];
+        let row = px
+            .get((y * TILE_W) as usize..((y + 1) * TILE_W) as usize)
+            .unwrap_or(&[]);
+        for (h, p) in hex.chunks_exact_mut(6).zip(row) {
+            for (pair, &v) in h.chunks_exact_mut(2).zip(p) {
+                const DIGITS: &[u8; 16] = b"0123456789abcdef";
+                pair[0] = DIGITS[(v >> 4) as usize];
+                pair[1] = DIGITS[(v & 15) as usize];
+            }
+        }
+        hprintln!(
+            "{} y={} rgb={}",
+            tag,
+            y,
+            core::str::from_utf8(&hex).unwrap_or("?")
+        );
+    }
+}
+
 /// The semihosting command line holds `word`.
 fn cmdline_has(word: &[u8]) -> bool {
     let mut buf = [0u8; 128];
@@ -136,6 +176,7 @@ fn main() -> ! {
     // cortex-m-rt turns these into `&'static mut`, placed in .bss / .data.
     static mut SOLVER: PaperSolver = PaperSolver::new();
     static mut PIXEL_BUF: [[u8; 3]; PIXELS] = [[0; 3]; PIXELS];
+    static mut NARROW_BUF: [[u8; 3]; PIXELS] = [[0; 3]; PIXELS];
     static mut TABLE_BUF: [[Config; CONFIGS]; OBJECTS] = [[config(0, 0); CONFIGS]; OBJECTS];
 
     if cmdline_has(b"panic") {
@@ -239,24 +280,7 @@ fn main() -> ! {
     );
     let px: &mut [[u8; 3]; PIXELS] = PIXEL_BUF;
     let ((), tile_peak) = stack::measure(|| shade_tile(mlp, px));
-    for y in 0..TILE_H {
-        let mut hex = [0u8; 6 * TILE_W as usize];
-        let row = px
-            .get((y * TILE_W) as usize..((y + 1) * TILE_W) as usize)
-            .unwrap_or(&[]);
-        for (h, p) in hex.chunks_exact_mut(6).zip(row) {
-            for (pair, &v) in h.chunks_exact_mut(2).zip(p) {
-                const DIGITS: &[u8; 16] = b"0123456789abcdef";
-                pair[0] = DIGITS[(v >> 4) as usize];
-                pair[1] = DIGITS[(v & 15) as usize];
-            }
-        }
-        hprintln!(
-            "row y={} rgb={}",
-            y,
-            core::str::from_utf8(&hex).unwrap_or("?")
-        );
-    }
+    print_rows("row", px);
     hprintln!(
         "tile width={} height={} fnv={:08x}",
         TILE_W,
@@ -264,21 +288,53 @@ fn main() -> ! {
         workload::pixels_hash(px)
     );
 
+    // The same tile with the narrow shader.
+    let narrow = &generated::NARROW;
+    let [c0, c1, c2, c3] = generated::NARROW_CHECK;
+    let [s0, s1, s2] = narrow.logit_lshift;
+    hprintln!(
+        "narrow source={} fnv={:08x} weight_max={} logit_lshift={},{},{} check={},{},{},{} passes={}",
+        generated::MLP_SOURCE,
+        workload::narrow_hash(narrow),
+        narrow.weight_max,
+        s0,
+        s1,
+        s2,
+        c0,
+        c1,
+        c2,
+        c3,
+        u8::from(generated::NARROW_PASSES)
+    );
+    let npx: &mut [[u8; 3]; PIXELS] = NARROW_BUF;
+    let ((), narrow_tile_peak) = stack::measure(|| shade_tile_narrow(narrow, npx));
+    print_rows("nrow", npx);
+    hprintln!(
+        "ntile width={} height={} fnv={:08x}",
+        TILE_W,
+        TILE_H,
+        workload::pixels_hash(npx)
+    );
+
     // 4. Costs.
     let (_, pixel_peak) = shade_one(mlp, 3, 5);
+    let (_, narrow_pixel_peak) = shade_one_narrow(narrow, 3, 5);
     hprintln!(
-        "stack profile_bytes={} solver_bytes={} shade_pixel_bytes={} shade_tile_bytes={}",
+        "stack profile_bytes={} solver_bytes={} shade_pixel_bytes={} shade_tile_bytes={} narrow_pixel_bytes={} narrow_tile_bytes={}",
         profile_peak,
         solver_peak,
         pixel_peak,
-        tile_peak
+        tile_peak,
+        narrow_pixel_peak,
+        narrow_tile_peak
     );
     hprintln!(
-        "memory solver_tables_bytes={} solver_static_bytes={} config_tables_bytes={} mlp_tables_bytes={}",
+        "memory solver_tables_bytes={} solver_static_bytes={} config_tables_bytes={} mlp_tables_bytes={} narrow_tables_bytes={}",
         PaperSolver::MEMORY_BYTES,
         size_of::<PaperSolver>(),
         size_of::<[[Config; CONFIGS]; OBJECTS]>(),
-        size_of::<FixedMlp>()
+        size_of::<FixedMlp>(),
+        size_of::<NarrowMlp>()
     );
     hprintln!("done");
     debug::exit(debug::EXIT_SUCCESS);

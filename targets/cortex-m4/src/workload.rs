@@ -18,6 +18,7 @@
 
 use nerflex_core::mck::Config;
 use nerflex_core::profiler::{ConfigSpace, Params, Profile, ProfileError};
+use nerflex_core::shader::narrow::{NarrowLayer, NarrowMlp};
 use nerflex_core::shader::{FixedLayer, FixedMlp, MlpWeights, ViewDir};
 use nerflex_core::units::Bytes;
 
@@ -193,6 +194,29 @@ pub fn mlp_hash(m: &FixedMlp) -> u32 {
     h.0
 }
 
+fn hash_narrow_layer<const P: usize, const G: usize, const N: usize>(
+    h: &mut Fnv,
+    l: &NarrowLayer<P, G, N>,
+) {
+    for &w in l.w.iter().flatten().flatten() {
+        h.u32(w);
+    }
+    for &b in l.bias.iter().flatten() {
+        h.u32(b as u32);
+    }
+}
+
+/// Checksum of the narrow MLP tables.
+pub fn narrow_hash(m: &NarrowMlp) -> u32 {
+    let mut h = Fnv::default();
+    hash_narrow_layer(&mut h, &m.l0);
+    hash_narrow_layer(&mut h, &m.l1);
+    hash_narrow_layer(&mut h, &m.l2);
+    h.bytes(&m.logit_lshift);
+    h.bytes(&m.weight_max.to_le_bytes());
+    h.0
+}
+
 /// Checksum of one object's configuration table (sizes and raw qualities).
 pub fn table_hash(table: &[Config]) -> u32 {
     let mut h = Fnv::default();
@@ -205,6 +229,15 @@ pub fn table_hash(table: &[Config]) -> u32 {
 
 /// Shades the whole tile row by row into `out` (`TILE_W · TILE_H` pixels).
 pub fn shade_tile(mlp: &FixedMlp, out: &mut [[u8; 3]]) {
+    let coords = (0..TILE_H).flat_map(|y| (0..TILE_W).map(move |x| (x, y)));
+    for (px, (x, y)) in out.iter_mut().zip(coords) {
+        let (f0, f1) = texels(x, y);
+        *px = mlp.shade(f0, f1, view_dir(x, y));
+    }
+}
+
+/// [`shade_tile`] with the narrow shader.
+pub fn shade_tile_narrow(mlp: &NarrowMlp, out: &mut [[u8; 3]]) {
     let coords = (0..TILE_H).flat_map(|y| (0..TILE_W).map(move |x| (x, y)));
     for (px, (x, y)) in out.iter_mut().zip(coords) {
         let (f0, f1) = texels(x, y);
