@@ -332,7 +332,7 @@ impl SceneInfo {
 
     /// Reads and validates `scene.json`.
     pub fn read(path: &Path) -> Result<Self, CaptureError> {
-        let text = std::fs::read_to_string(path).map_err(|source| CaptureError::Io {
+        let text = crate::validate::read_to_string(path).map_err(|source| CaptureError::Io {
             path: path.to_path_buf(),
             action: "cannot read",
             source,
@@ -674,7 +674,8 @@ fn load_frame(
 }
 
 fn decode(path: &Path) -> Result<DynamicImage, CaptureError> {
-    let reader = image::ImageReader::open(path)
+    let reader = crate::validate::regular_file(path)
+        .and_then(|()| image::ImageReader::open(path))
         .and_then(|r| r.with_guessed_format())
         .map_err(|source| CaptureError::Io {
             path: path.to_path_buf(),

@@ -161,7 +161,7 @@ impl std::error::Error for SceneError {}
 /// Reads and validates a scene file.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let origin = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+    let text = crate::validate::read_to_string(path).map_err(|e| SceneError {
         origin: origin.clone(),
         field: String::new(),
         message: format!("cannot read: {e}"),

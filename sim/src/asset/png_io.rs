@@ -18,7 +18,8 @@ pub fn read_rgba8(path: &Path) -> Result<RgbaImage, AssetError> {
         path: path.to_path_buf(),
         msg,
     };
-    let file = std::fs::File::open(path).map_err(|cause| AssetError::Io {
+    let file = crate::validate::regular_file(path)
+        .and_then(|()| std::fs::File::open(path)).map_err(|cause| AssetError::Io {
         path: path.to_path_buf(),
         cause,
     })?;

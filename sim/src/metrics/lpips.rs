@@ -93,7 +93,7 @@ impl Lpips {
     /// `lin{0..4}.kernel` (all F32). Errors name the file and the tensor.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, MetricsError> {
         let path = path.as_ref();
-        let bytes = std::fs::read(path).map_err(|error| MetricsError::Io {
+        let bytes = crate::validate::read(path).map_err(|error| MetricsError::Io {
             path: path.to_owned(),
             error,
         })?;

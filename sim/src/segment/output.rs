@@ -335,7 +335,7 @@ pub struct Timings {
 impl Segmentation {
     /// Reads and checks a `segmentation.json`.
     pub fn read(path: &Path) -> Result<Self, SegmentError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SegmentError::Io {
+        let text = crate::validate::read_to_string(path).map_err(|source| SegmentError::Io {
             path: path.to_path_buf(),
             source,
         })?;
