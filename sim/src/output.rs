@@ -53,6 +53,17 @@ impl OutputError {
     }
 }
 
+impl OutputError {
+    /// The underlying I/O error (for callers whose errors name the path
+    /// themselves); other errors become `io::Error::other` of the message.
+    pub fn into_io(self) -> std::io::Error {
+        match self {
+            OutputError::Io { cause, .. } => cause,
+            other => std::io::Error::other(other.to_string()),
+        }
+    }
+}
+
 static COUNTER: AtomicU64 = AtomicU64::new(0);
 
 /// A hidden name beside `dest` no other writer uses: `.{name}.{tag}-{pid}-{n}-{ns}`.
@@ -76,7 +87,7 @@ pub fn is_temporary_of(entry: &str, name: &str) -> bool {
         .is_some_and(|r| r.starts_with(".tmp-") || r.starts_with(".new-") || r.starts_with(".old-"))
 }
 
-/// Writes `bytes` to `path` atomically (unique temporary, sync, rename);
+/// Writes `bytes` to `path` atomically (unique temporary, then rename);
 /// creates the parent folder. Returns the bytes written.
 pub fn write_file(path: &Path, bytes: &[u8]) -> Result<u64, OutputError> {
     use std::io::Write as _;
@@ -93,8 +104,10 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> Result<u64, OutputError> {
     let tmp = unique_sibling(path, "tmp");
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
+        // No fsync: the guarantee is about failed commands (a full disk
+        // fails `write_all`), not power loss, and captures write thousands.
         f.write_all(bytes)?;
-        f.sync_all()
+        f.flush()
     })();
     if let Err(e) = result {
         let _ = std::fs::remove_file(&tmp);
