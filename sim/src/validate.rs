@@ -37,10 +37,11 @@ pub fn f32_finite(what: &str, v: f32) -> Result<f32, String> {
 /// the size checks without a machine of that size.
 pub const MEMORY_LIMIT_ENV: &str = "NERFLEX_MEMORY_LIMIT";
 
-/// The memory one command may plan to allocate, bytes: the machine's
+/// The memory one command may plan to allocate, bytes: half the machine's
 /// physical memory (`MemTotal` of `/proc/meminfo`; 16 GiB where that is
-/// unknown), or [`MEMORY_LIMIT_ENV`]. Beyond it an allocation would fail
-/// and abort the process instead of giving an error.
+/// unknown), leaving the rest to the system and other work, or
+/// [`MEMORY_LIMIT_ENV`]. Beyond it an allocation may fail, and a failed
+/// allocation aborts the process instead of giving an error.
 pub fn memory_limit() -> u64 {
     if let Some(v) = std::env::var(MEMORY_LIMIT_ENV)
         .ok()
@@ -55,7 +56,7 @@ pub fn memory_limit() -> u64 {
                 .find_map(|l| l.strip_prefix("MemTotal:"))
                 .and_then(|r| r.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
         })
-        .map_or(16 << 30, |kib| kib * 1024)
+        .map_or(8 << 30, |kib| kib * 1024 / 2)
 }
 
 /// Checks that `bytes` (what `what` implies: e.g. `--frames 10⁹ × 64 B per
@@ -64,7 +65,7 @@ pub fn memory(what: &str, bytes: u128, why: &str) -> Result<(), String> {
     let limit = memory_limit();
     if bytes > u128::from(limit) {
         return Err(format!(
-            "{what} needs {} of memory for {why}, more than the limit of {} (this machine's memory; {MEMORY_LIMIT_ENV} overrides)",
+            "{what} needs {} of memory for {why}, more than the limit of {} (half this machine's memory; {MEMORY_LIMIT_ENV} overrides)",
             human(bytes),
             human(u128::from(limit))
         ));
