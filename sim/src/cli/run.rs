@@ -69,9 +69,7 @@ impl PipelineArgs {
     /// reduced defaults otherwise), with the bake store under `out` unless
     /// `--store` names one.
     pub fn options(&self, out: &Path) -> anyhow::Result<Options> {
-        if self.frames == 0 {
-            bail!("--frames: must be at least 1");
-        }
+        simulate::check_frames(self.frames).map_err(anyhow::Error::msg)?;
         if !(16..=2048).contains(&self.size) {
             bail!("--size: must be 16..=2048 pixels, got {}", self.size);
         }
@@ -190,6 +188,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (None, Some(p)) => Input::Preset(p),
         (None, None) => bail!("give --capture DIR or --preset NAME"),
     };
+    if matches!(input, Input::Preset(_)) {
+        // Before anything is written into OUT.
+        crate::pipeline::stages::check_preset_capture(&args.out)?;
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("{}: cannot create", args.out.display()))?;
     args.pipeline.ignore_default_store(&args.out)?;

@@ -141,6 +141,7 @@ pub fn summary(sim: &Simulation, what: &str) -> String {
 
 /// Runs `nerflex simulate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    simulate::check_frames(args.frames).map_err(anyhow::Error::msg)?;
     let device = Device::lookup(&args.device)?;
     let scene = scene_file::load(&args.scene)?;
     let spec = turntable_spec(

@@ -180,6 +180,22 @@ pub struct Prepared {
     pub timings: Timings,
 }
 
+/// Never delete what we did not create: `out/capture` is regenerated for a
+/// built-in scene only if `nerflex run` wrote it (its `nerflex-run.json`
+/// stamp); any other folder there is the user's and is refused.
+pub fn check_preset_capture(out: &Path) -> anyhow::Result<()> {
+    let dir = out.join("capture");
+    if std::fs::symlink_metadata(&dir).is_ok() && !dir.join("nerflex-run.json").is_file() {
+        bail!(
+            "{}: exists and was not written by `nerflex run` (it has no nerflex-run.json), so it is not replaced; \
+             move it away, use it with --capture {}, or choose another --out",
+            dir.display(),
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
 /// Loads a capture and names it.
 fn input_capture(
     input: &Input,
@@ -209,16 +225,7 @@ fn input_capture(
             if have.as_ref() == Some(&want) && Capture::load(&dir).is_ok() {
                 return Ok((dir, p.name().to_string(), 0.0));
             }
-            // Never delete what we did not create: a folder without our
-            // stamp is the user's.
-            if std::fs::symlink_metadata(&dir).is_ok() && !stamp.is_file() {
-                bail!(
-                    "{}: exists and was not written by `nerflex run` (it has no nerflex-run.json), so it is not replaced; \
-                     move it away, use it with --capture {}, or choose another --out",
-                    dir.display(),
-                    dir.display()
-                );
-            }
+            check_preset_capture(out)?;
             let t0 = Instant::now();
             progress.stage(
                 &format!(
