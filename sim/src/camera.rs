@@ -267,10 +267,12 @@ impl Transforms {
             path: path.to_path_buf(),
             source,
         })?;
-        std::fs::write(path, text).map_err(|source| CameraError::Io {
-            path: path.to_path_buf(),
-            source,
-        })
+        crate::output::write_file(path, text.as_bytes())
+            .map(|_| ())
+            .map_err(|e| CameraError::Io {
+                path: path.to_path_buf(),
+                source: e.into_io(),
+            })
     }
 
     fn validate(&self) -> Result<(), String> {

@@ -773,11 +773,10 @@ fn scene_quality(
         sum.psnr += s.psnr.min(100.0);
         lp += s.lpips.unwrap_or(0.0);
         if let Some(dir) = &opts.renders {
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("{}: cannot create", dir.display()))?;
             let path = dir.join(format!("test_{i}.png"));
-            img.save(&path)
-                .with_context(|| format!("{}: cannot write", path.display()))?;
+            let png = crate::asset::png_io::encode_rgba8(&img)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+            crate::output::write_file(&path, &png)?;
         }
         progress.step(&format!("view {i}"));
     }
