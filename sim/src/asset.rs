@@ -21,13 +21,13 @@ pub mod mlp_json;
 pub mod obj;
 pub mod png_io;
 
+use crate::output::{self, OutputError, StagedDir};
 /// The `image` crate whose `RgbaImage` holds atlas pages (re-exported so
 /// code building an [`Asset`] uses the same version).
 pub use image;
 use image::RgbaImage;
 use nerflex_core::raster::{Atlas, Quad};
 use nerflex_core::shader::{FixedMlp, MlpWeights, ShaderError};
-use crate::output::{self, OutputError, StagedDir};
 use std::path::{Path, PathBuf};
 
 /// Errors reading or writing an asset; each names the file (and line or key).

@@ -268,7 +268,10 @@ mod tests {
         let e = s.commit(&|n| n == "a", "move it away").unwrap_err();
         assert!(e.to_string().contains("notes.txt"), "{e}");
         assert!(e.to_string().contains("move it away"), "{e}");
-        assert_eq!(std::fs::read_to_string(dest.join("notes.txt")).unwrap(), "mine");
+        assert_eq!(
+            std::fs::read_to_string(dest.join("notes.txt")).unwrap(),
+            "mine"
+        );
         assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 1);
     }
 

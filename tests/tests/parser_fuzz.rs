@@ -28,7 +28,9 @@ const PROFILE_SCENE: &str = r#"{"objects": [{"name": "x", "profile": {"g": [8, 1
 const DEVICE: &str = include_str!("../../sim/devices/pixel4.toml");
 
 fn csv() -> String {
-    format!("{CSV_HEADER}\nlego,16,5,1000,2000,30,0.9,28.5,0.1\nlego,32,5,4000,8000,90,0.95,30.1,\n")
+    format!(
+        "{CSV_HEADER}\nlego,16,5,1000,2000,30,0.9,28.5,0.1\nlego,32,5,4000,8000,90,0.95,30.1,\n"
+    )
 }
 
 fn mlp() -> String {

@@ -92,7 +92,10 @@ fn snapshot(dir: &Path) -> Snapshot {
                 let bytes = std::fs::read(&p).unwrap();
                 let mut h = std::collections::hash_map::DefaultHasher::new();
                 bytes.hash(&mut h);
-                out.insert(p.strip_prefix(root).unwrap().into(), (bytes.len(), h.finish()));
+                out.insert(
+                    p.strip_prefix(root).unwrap().into(),
+                    (bytes.len(), h.finish()),
+                );
             }
         }
     }
@@ -156,8 +159,17 @@ fn copy_capture(dir: &Path) -> PathBuf {
 /// Bakes the ball at g=8, p=3 into `out` (succeeds).
 fn bake_into(out: &Path) {
     let (code, msg) = nerflex(&[
-        "bake", "--capture", s(capture()), "--object", "ball", "--grid", "8", "--patch", "3",
-        "--out", s(out),
+        "bake",
+        "--capture",
+        s(capture()),
+        "--object",
+        "ball",
+        "--grid",
+        "8",
+        "--patch",
+        "3",
+        "--out",
+        s(out),
     ]);
     assert_eq!(code, 0, "{msg}");
 }
@@ -165,10 +177,19 @@ fn bake_into(out: &Path) {
 /// A safetensors file of LPIPS's tensor names and shapes, every value from
 /// `value(name)`.
 fn lpips_file(path: &Path, value: &dyn Fn(&str) -> f32) {
-    let convs = [(11, 3, 64), (5, 64, 192), (3, 192, 384), (3, 384, 256), (3, 256, 256)];
+    let convs = [
+        (11, 3, 64),
+        (5, 64, 192),
+        (3, 192, 384),
+        (3, 384, 256),
+        (3, 256, 256),
+    ];
     let mut tensors: Vec<(String, Vec<usize>)> = Vec::new();
     for (i, &(k, cin, cout)) in convs.iter().enumerate() {
-        tensors.push((format!("alexnet.conv{i}.kernel_hwio"), vec![k, k, cin, cout]));
+        tensors.push((
+            format!("alexnet.conv{i}.kernel_hwio"),
+            vec![k, k, cin, cout],
+        ));
         tensors.push((format!("alexnet.conv{i}.bias"), vec![cout]));
         tensors.push((format!("lin{i}.kernel"), vec![cout]));
     }
@@ -211,8 +232,18 @@ fn a_failed_measurement_leaves_the_old_asset_byte_identical() {
     let bad = tmp.path().join("bad.safetensors");
     std::fs::write(&bad, b"not safetensors").unwrap();
     let base = [
-        "bake", "--capture", s(capture()), "--object", "ball", "--grid", "10", "--patch", "4",
-        "--out", s(&out), "--measure",
+        "bake",
+        "--capture",
+        s(capture()),
+        "--object",
+        "ball",
+        "--grid",
+        "10",
+        "--patch",
+        "4",
+        "--out",
+        s(&out),
+        "--measure",
     ];
     // Bad LPIPS weights: the measurement fails after the bake.
     let mut a = base.to_vec();
@@ -249,7 +280,19 @@ fn bake_never_replaces_a_folder_it_did_not_write() {
     std::fs::write(out.join("thesis.tex"), "years of work").unwrap();
     let before = snapshot(&out);
     fails(
-        &["bake", "--capture", s(capture()), "--object", "ball", "--grid", "8", "--patch", "3", "--out", s(&out)],
+        &[
+            "bake",
+            "--capture",
+            s(capture()),
+            "--object",
+            "ball",
+            "--grid",
+            "8",
+            "--patch",
+            "3",
+            "--out",
+            s(&out),
+        ],
         &["thesis.tex", "--out"],
     );
     assert_eq!(snapshot(&out), before);
@@ -259,7 +302,15 @@ fn bake_never_replaces_a_folder_it_did_not_write() {
 fn bake_refuses_zero_views_and_an_impossible_patch() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("a");
-    let base = ["bake", "--capture", s(capture()), "--object", "ball", "--out", s(&out)];
+    let base = [
+        "bake",
+        "--capture",
+        s(capture()),
+        "--object",
+        "ball",
+        "--out",
+        s(&out),
+    ];
     let mut a = base.to_vec();
     a.extend(["--grid", "8", "--patch", "3", "--max-views", "0"]);
     fails(&a, &["--max-views"]);
@@ -275,27 +326,67 @@ fn cameras_that_overflow_f32_are_refused_by_bake_and_render() {
     let tmp = tempfile::tempdir().unwrap();
     let cap = copy_capture(tmp.path());
     let t = cap.join("transforms_train.json");
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&t).unwrap()).unwrap();
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&t).unwrap()).unwrap();
     v["frames"][0]["transform_matrix"][0][3] = serde_json::json!(1e39);
     std::fs::write(&t, v.to_string()).unwrap();
     let out = tmp.path().join("a");
     fails(
-        &["bake", "--capture", s(&cap), "--object", "ball", "--grid", "8", "--patch", "3", "--out", s(&out)],
+        &[
+            "bake",
+            "--capture",
+            s(&cap),
+            "--object",
+            "ball",
+            "--grid",
+            "8",
+            "--patch",
+            "3",
+            "--out",
+            s(&out),
+        ],
         &["transforms_train.json", "transform_matrix[0][3]"],
     );
     assert!(!out.exists());
     // A focal length finite in f64 but not in f32.
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(capture().join("transforms_train.json")).unwrap()).unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(capture().join("transforms_train.json")).unwrap(),
+    )
+    .unwrap();
     v["fl_x"] = serde_json::json!(1e39);
     std::fs::write(&t, v.to_string()).unwrap();
     fails(
-        &["bake", "--capture", s(&cap), "--object", "ball", "--grid", "8", "--patch", "3", "--out", s(&out)],
+        &[
+            "bake",
+            "--capture",
+            s(&cap),
+            "--object",
+            "ball",
+            "--grid",
+            "8",
+            "--patch",
+            "3",
+            "--out",
+            s(&out),
+        ],
         &["transforms_train.json", "fl_x"],
     );
     let asset = tmp.path().join("asset");
     bake_into(&asset);
     fails(
-        &["render", "--asset", s(&asset), "--transforms", s(&t), "--frame", "0", "--size", "32", "--out", s(&tmp.path().join("r.png"))],
+        &[
+            "render",
+            "--asset",
+            s(&asset),
+            "--transforms",
+            s(&t),
+            "--frame",
+            "0",
+            "--size",
+            "32",
+            "--out",
+            s(&tmp.path().join("r.png")),
+        ],
         &["transforms_train.json", "fl_x"],
     );
     assert!(!tmp.path().join("r.png").exists());
@@ -306,7 +397,15 @@ fn segment_replaces_its_folder_whole_and_refuses_foreign_files() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("seg");
     let seg = |alpha: &str| {
-        nerflex(&["segment", "--capture", s(capture()), "--alpha", alpha, "--out", s(&out)])
+        nerflex(&[
+            "segment",
+            "--capture",
+            s(capture()),
+            "--alpha",
+            alpha,
+            "--out",
+            s(&out),
+        ])
     };
     // All dedicated, then all shared: no stale group folder survives.
     assert_eq!(seg("0").0, 0);
@@ -330,14 +429,33 @@ fn segment_replaces_its_folder_whole_and_refuses_foreign_files() {
     // A failure (an impossible size) leaves it as it was.
     let before = snapshot(&out);
     fails(
-        &["segment", "--capture", s(capture()), "--size", "100000", "--out", s(&out)],
+        &[
+            "segment",
+            "--capture",
+            s(capture()),
+            "--size",
+            "100000",
+            "--out",
+            s(&out),
+        ],
         &["--size", "limit"],
     );
     assert_eq!(snapshot(&out), before);
     // Something we did not write is never removed.
     std::fs::write(out.join("notes.md"), "mine").unwrap();
     let before = snapshot(&out);
-    fails(&["segment", "--capture", s(capture()), "--alpha", "0", "--out", s(&out)], &["notes.md"]);
+    fails(
+        &[
+            "segment",
+            "--capture",
+            s(capture()),
+            "--alpha",
+            "0",
+            "--out",
+            s(&out),
+        ],
+        &["notes.md"],
+    );
     assert_eq!(snapshot(&out), before);
 }
 
@@ -349,7 +467,23 @@ fn run_refuses_a_capture_folder_it_did_not_write() {
     std::fs::write(out.join("capture/photo.jpg"), "mine").unwrap();
     let before = snapshot(&out.join("capture"));
     fails(
-        &["run", "--preset", "scene1", "--device", "pixel4", "--out", s(&out), "--no-lpips", "--quiet", "--size", "16", "--views", "2", "--test-views", "1"],
+        &[
+            "run",
+            "--preset",
+            "scene1",
+            "--device",
+            "pixel4",
+            "--out",
+            s(&out),
+            "--no-lpips",
+            "--quiet",
+            "--size",
+            "16",
+            "--views",
+            "2",
+            "--test-views",
+            "1",
+        ],
         &["capture", "nerflex-run.json", "--capture", "--out"],
     );
     assert_eq!(snapshot(&out.join("capture")), before);
@@ -360,11 +494,32 @@ fn sizes_beyond_memory_are_refused_before_allocating() {
     let tmp = tempfile::tempdir().unwrap();
     // --frames 2³²: refused before the scene or the assets are read.
     fails(
-        &["simulate", "--scene", "/nonexistent.json", "--device", "pixel4", "--method", "dp", "--frames", "4294967296"],
+        &[
+            "simulate",
+            "--scene",
+            "/nonexistent.json",
+            "--device",
+            "pixel4",
+            "--method",
+            "dp",
+            "--frames",
+            "4294967296",
+        ],
         &["--frames 4294967296", "limit"],
     );
     fails(
-        &["run", "--preset", "scene1", "--device", "pixel4", "--out", s(&tmp.path().join("r")), "--frames", "4294967296", "--no-lpips"],
+        &[
+            "run",
+            "--preset",
+            "scene1",
+            "--device",
+            "pixel4",
+            "--out",
+            s(&tmp.path().join("r")),
+            "--frames",
+            "4294967296",
+            "--no-lpips",
+        ],
         &["--frames", "limit"],
     );
     // Two 8192² PNGs with LPIPS: refused, not aborted.
@@ -373,7 +528,10 @@ fn sizes_beyond_memory_are_refused_before_allocating() {
     std::fs::copy(&a, &b).unwrap();
     let w = tmp.path().join("w.safetensors");
     lpips_file(&w, &|_| 0.01);
-    fails(&["metrics", s(&a), s(&b), "--lpips-weights", s(&w)], &["8192×8192", "limit"]);
+    fails(
+        &["metrics", s(&a), s(&b), "--lpips-weights", s(&w)],
+        &["8192×8192", "limit"],
+    );
 }
 
 #[test]
@@ -388,7 +546,10 @@ fn a_two_million_entry_scene_list_is_refused_quickly() {
     let path = tmp.path().join("scene.json");
     std::fs::write(&path, scene.to_string()).unwrap();
     let t0 = Instant::now();
-    fails(&["plan", "--scene", s(&path), "--device", "pixel4"], &["scene.json", "profile.g"]);
+    fails(
+        &["plan", "--scene", s(&path), "--device", "pixel4"],
+        &["scene.json", "profile.g"],
+    );
     assert!(t0.elapsed() < Duration::from_secs(20), "{:?}", t0.elapsed());
 }
 
@@ -397,7 +558,17 @@ fn eval_checks_its_real_captures_first() {
     let tmp = tempfile::tempdir().unwrap();
     let t0 = Instant::now();
     fails(
-        &["eval", "--scenes", "scene1", "--real", "/nonexistent/lego", "--out", s(&tmp.path().join("e")), "--no-lpips", "--quiet"],
+        &[
+            "eval",
+            "--scenes",
+            "scene1",
+            "--real",
+            "/nonexistent/lego",
+            "--out",
+            s(&tmp.path().join("e")),
+            "--no-lpips",
+            "--quiet",
+        ],
         &["--real", "/nonexistent/lego"],
     );
     assert!(t0.elapsed() < Duration::from_secs(10), "{:?}", t0.elapsed());
@@ -410,14 +581,29 @@ fn lpips_weights_are_checked_on_load() {
     png(&a, 64, 64);
     png(&b, 64, 64);
     let nan = tmp.path().join("nan.safetensors");
-    lpips_file(&nan, &|n| if n.starts_with("alexnet.conv2") { f32::NAN } else { 0.01 });
-    fails(&["metrics", s(&a), s(&b), "--lpips-weights", s(&nan)], &["nan.safetensors", "alexnet.conv2", "not finite"]);
+    lpips_file(&nan, &|n| {
+        if n.starts_with("alexnet.conv2") {
+            f32::NAN
+        } else {
+            0.01
+        }
+    });
+    fails(
+        &["metrics", s(&a), s(&b), "--lpips-weights", s(&nan)],
+        &["nan.safetensors", "alexnet.conv2", "not finite"],
+    );
     let neg = tmp.path().join("neg.safetensors");
     lpips_file(&neg, &|n| if n.starts_with("lin") { -1.0 } else { 0.01 });
-    fails(&["metrics", s(&a), s(&b), "--lpips-weights", s(&neg)], &["neg.safetensors", "lin0.kernel", "negative"]);
+    fails(
+        &["metrics", s(&a), s(&b), "--lpips-weights", s(&neg)],
+        &["neg.safetensors", "lin0.kernel", "negative"],
+    );
     let ok = tmp.path().join("ok.safetensors");
     lpips_file(&ok, &|_| 0.01);
-    assert_eq!(nerflex(&["metrics", s(&a), s(&b), "--lpips-weights", s(&ok)]).0, 0);
+    assert_eq!(
+        nerflex(&["metrics", s(&a), s(&b), "--lpips-weights", s(&ok)]).0,
+        0
+    );
 }
 
 #[test]
@@ -427,7 +613,18 @@ fn an_asset_without_faces_is_an_error() {
     bake_into(&asset);
     std::fs::write(asset.join("shape0.obj"), "").unwrap();
     let png = tmp.path().join("r.png");
-    fails(&["render", "--asset", s(&asset), "--size", "32", "--out", s(&png)], &["no faces"]);
+    fails(
+        &[
+            "render",
+            "--asset",
+            s(&asset),
+            "--size",
+            "32",
+            "--out",
+            s(&png),
+        ],
+        &["no faces"],
+    );
     assert!(!png.exists());
 }
 
@@ -447,9 +644,14 @@ fn a_fifo_is_refused_instead_of_blocking() {
     }
     let out = tmp.path().join("r.png");
     let (tx, rx) = std::sync::mpsc::channel();
-    let args = vec![
-        "render".to_string(), "--asset".into(), s(&asset).into(), "--size".into(), "32".into(),
-        "--out".into(), s(&out).into(),
+    let args: [String; 7] = [
+        "render".to_string(),
+        "--asset".into(),
+        s(&asset).into(),
+        "--size".into(),
+        "32".into(),
+        "--out".into(),
+        s(&out).into(),
     ];
     std::thread::spawn(move || {
         let a: Vec<&str> = args.iter().map(String::as_str).collect();
@@ -459,7 +661,10 @@ fn a_fifo_is_refused_instead_of_blocking() {
         .recv_timeout(Duration::from_secs(30))
         .expect("render blocked on a FIFO mlp.json");
     assert_eq!(code, 1, "{msg}");
-    assert!(msg.contains("mlp.json") && msg.contains("not a regular file"), "{msg}");
+    assert!(
+        msg.contains("mlp.json") && msg.contains("not a regular file"),
+        "{msg}"
+    );
 }
 
 #[test]

@@ -19,10 +19,11 @@ pub fn read_rgba8(path: &Path) -> Result<RgbaImage, AssetError> {
         msg,
     };
     let file = crate::validate::regular_file(path)
-        .and_then(|()| std::fs::File::open(path)).map_err(|cause| AssetError::Io {
-        path: path.to_path_buf(),
-        cause,
-    })?;
+        .and_then(|()| std::fs::File::open(path))
+        .map_err(|cause| AssetError::Io {
+            path: path.to_path_buf(),
+            cause,
+        })?;
     let mut dec = png::Decoder::new(BufReader::new(file));
     // A 16384² RGBA8 page is 1 GiB: allow that, not more.
     dec.set_limits(png::Limits {

@@ -166,7 +166,8 @@ impl Fnv64 {
 pub fn hash_files(files: &[PathBuf]) -> anyhow::Result<u64> {
     let mut h = Fnv64::default();
     for f in files {
-        let bytes = crate::validate::read(f).with_context(|| format!("{}: cannot read", f.display()))?;
+        let bytes =
+            crate::validate::read(f).with_context(|| format!("{}: cannot read", f.display()))?;
         h.write(&(bytes.len() as u64).to_le_bytes());
         h.write(&bytes);
     }

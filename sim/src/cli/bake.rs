@@ -214,7 +214,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     // Refuse outputs we may not replace before any work.
     if let Some(out) = &args.out {
-        crate::output::check_replaceable(out, &crate::asset::is_asset_file, "--out: an asset folder is replaced whole; move that away or choose another --out")?;
+        crate::output::check_replaceable(
+            out,
+            &crate::asset::is_asset_file,
+            "--out: an asset folder is replaced whole; move that away or choose another --out",
+        )?;
     }
     if let Some(dir) = args.renders.as_ref().filter(|_| args.measure) {
         crate::output::check_replaceable(dir, &is_render_file, RENDERS_HINT)?;
