@@ -78,22 +78,11 @@ pub fn unique_sibling(dest: &Path, tag: &str) -> PathBuf {
     dest.with_file_name(format!(".{name}.{tag}-{}-{n}-{ns}", std::process::id()))
 }
 
-/// True for the hidden temporary names [`unique_sibling`] makes for `name`
-/// (leftovers of a killed writer, safe to replace).
-pub fn is_temporary_of(entry: &str, name: &str) -> bool {
-    entry
-        .strip_prefix('.')
-        .and_then(|r| r.strip_prefix(name))
-        .is_some_and(|r| r.starts_with(".tmp-") || r.starts_with(".new-") || r.starts_with(".old-"))
-}
-
-/// Writes `bytes` to `path` atomically (unique temporary, then rename);
-/// creates the parent folder. Returns the bytes written.
+/// Writes `bytes` to `path` atomically (unique temporary, then rename).
+/// The parent folder must exist ([`create_parent`]). Returns the bytes
+/// written.
 pub fn write_file(path: &Path, bytes: &[u8]) -> Result<u64, OutputError> {
     use std::io::Write as _;
-    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).map_err(OutputError::io(parent, "cannot create"))?;
-    }
     if path.is_dir() {
         return Err(OutputError::NotOurs {
             path: path.to_path_buf(),
@@ -118,6 +107,16 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> Result<u64, OutputError> {
         OutputError::io(path, "cannot rename into place")(e)
     })?;
     Ok(bytes.len() as u64)
+}
+
+/// Creates the parent folder of `path` (and its parents) if needed.
+pub fn create_parent(path: &Path) -> Result<(), OutputError> {
+    match path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        Some(parent) => {
+            std::fs::create_dir_all(parent).map_err(OutputError::io(parent, "cannot create"))
+        }
+        None => Ok(()),
+    }
 }
 
 /// Checks that `dest` can be replaced: absent, or a folder every entry of
@@ -276,19 +275,25 @@ mod tests {
     }
 
     #[test]
-    fn temporary_names_are_unique_and_recognised() {
+    fn temporary_names_are_unique_and_hidden() {
         let p = Path::new("/x/out");
         let (a, b) = (unique_sibling(p, "tmp"), unique_sibling(p, "tmp"));
         assert_ne!(a, b);
-        let n = a.file_name().unwrap().to_str().unwrap();
-        assert!(is_temporary_of(n, "out"), "{n}");
-        assert!(!is_temporary_of("out", "out"));
+        assert_eq!(a.parent(), p.parent());
+        assert!(a
+            .file_name()
+            .unwrap()
+            .to_str()
+            .unwrap()
+            .starts_with(".out.tmp-"));
     }
 
     #[test]
     fn write_file_replaces_atomically() {
         let d = tempfile::tempdir().unwrap();
         let f = d.path().join("sub/f.txt");
+        assert!(write_file(&f, b"one").is_err(), "no parent folder");
+        create_parent(&f).unwrap();
         write_file(&f, b"one").unwrap();
         write_file(&f, b"two").unwrap();
         assert_eq!(std::fs::read(&f).unwrap(), b"two");

@@ -503,6 +503,7 @@ impl Cache {
             key: key.to_string(),
             sample: sample.clone(),
         })?;
+        crate::output::create_parent(&path)?;
         crate::output::write_file(&path, text.as_bytes())?;
         Ok(())
     }

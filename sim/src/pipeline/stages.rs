@@ -779,6 +779,7 @@ fn scene_quality(
             let path = dir.join(format!("test_{i}.png"));
             let png = crate::asset::png_io::encode_rgba8(&img)
                 .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+            crate::output::create_parent(&path)?;
             crate::output::write_file(&path, &png)?;
         }
         progress.step(&format!("view {i}"));

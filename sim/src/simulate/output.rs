@@ -34,6 +34,7 @@ pub fn csv_text(sim: &Simulation) -> String {
 /// Writes `text` to `path` through a temporary file and a rename, so an
 /// interrupted write never leaves a truncated file.
 pub fn write_text(path: &Path, text: &str) -> anyhow::Result<()> {
+    crate::output::create_parent(path)?;
     crate::output::write_file(path, text.as_bytes())?;
     Ok(())
 }
