@@ -174,7 +174,7 @@ fn check_memory((w, h): (u32, u32), lpips: bool) -> Result<(), MetricsError> {
     let per_pixel = SSIM_BYTES_PER_PIXEL + if lpips { LPIPS_BYTES_PER_PIXEL } else { 0 };
     let pixels = u128::from(w) * u128::from(h);
     crate::validate::memory(
-        &format!("images of {w}×{h}"),
+        &format!("comparing {w}×{h} images"),
         pixels * per_pixel,
         &format!(
             "the metrics' working buffers ({per_pixel} B per pixel{})",
