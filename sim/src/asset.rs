@@ -21,6 +21,7 @@ pub mod mlp_json;
 pub mod obj;
 pub mod png_io;
 
+use crate::output::{self, OutputError, StagedDir};
 /// The `image` crate whose `RgbaImage` holds atlas pages (re-exported so
 /// code building an [`Asset`] uses the same version).
 pub use image;
@@ -331,6 +332,20 @@ impl Asset {
             shapes,
             file_bytes,
         };
+        // An asset that draws nothing would render a blank picture and exit 0.
+        for s in asset.shapes.iter().filter(|s| s.quads.is_empty()) {
+            eprintln!(
+                "warning: {}: no faces: shape {} draws nothing",
+                dir.join(&shape_files(s.index)[0]).display(),
+                s.index
+            );
+        }
+        if asset.shapes.iter().all(|s| s.quads.is_empty()) {
+            return Err(AssetError::Invalid(format!(
+                "{}: the asset has no faces (every shape*.obj is empty): nothing to render",
+                dir.display()
+            )));
+        }
         let missing = asset.missing_shapes();
         if !missing.is_empty() {
             eprintln!(
@@ -372,11 +387,22 @@ impl Asset {
         }
     }
 
-    /// Writes the export layout into `dir` (created if needed): `mlp.json`
-    /// and the three files of every shape. Each file is written to a
-    /// temporary name and renamed, so an interrupted write leaves no
-    /// half-written file under a final name. Returns the bytes written.
+    /// Writes the export layout as the folder `dir`, replacing it whole:
+    /// built beside it ([`Asset::write_staged`]) and renamed into place
+    /// only once complete, so a failure leaves the old folder as it was.
+    /// An existing `dir` holding anything but asset files is refused
+    /// ([`is_asset_file`]): we never delete what we did not write.
+    /// Returns the bytes written.
     pub fn write(&self, dir: &Path) -> Result<u64, AssetError> {
+        let (staged, bytes) = self.write_staged(dir)?;
+        commit_asset_dir(staged)?;
+        Ok(bytes)
+    }
+
+    /// Builds the export folder beside `dir` without touching `dir`; the
+    /// caller commits it with [`commit_asset_dir`] once everything else
+    /// (e.g. a measurement) has succeeded, or drops it to discard it.
+    pub fn write_staged(&self, dir: &Path) -> Result<(StagedDir, u64), AssetError> {
         let mut seen = std::collections::BTreeSet::new();
         for s in &self.shapes {
             if s.index >= self.obj_num || !seen.insert(s.index) {
@@ -392,10 +418,15 @@ impl Asset {
                 self.obj_num
             )));
         }
-        std::fs::create_dir_all(dir).map_err(|cause| AssetError::Io {
-            path: dir.to_path_buf(),
-            cause,
-        })?;
+        // Refuse a foreign folder before any work.
+        output::check_replaceable(dir, &is_asset_file, ASSET_DIR_HINT)?;
+        let staged = StagedDir::new(dir)?;
+        let bytes = self.write_into(staged.path())?;
+        Ok((staged, bytes))
+    }
+
+    /// Writes the files into the existing folder `dir` (no staging).
+    fn write_into(&self, dir: &Path) -> Result<u64, AssetError> {
         let mut bytes = 0u64;
         let json = mlp_json::to_string(self.mlp.weights(), self.obj_num);
         bytes += write_atomic(&dir.join("mlp.json"), json.as_bytes())?;
@@ -426,21 +457,41 @@ impl Asset {
     }
 }
 
-/// Writes `data` to `path` through a temporary file in the same folder.
-pub fn write_atomic(path: &Path, data: &[u8]) -> Result<u64, AssetError> {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
-    let io = |cause| AssetError::Io {
-        path: path.to_path_buf(),
-        cause,
+const ASSET_DIR_HINT: &str =
+    "an asset folder is replaced whole; move that file away or choose another --out";
+
+/// Moves a folder built by [`Asset::write_staged`] into place.
+pub fn commit_asset_dir(staged: StagedDir) -> Result<(), AssetError> {
+    Ok(staged.commit(&is_asset_file, ASSET_DIR_HINT)?)
+}
+
+/// True for the names an export folder holds: `mlp.json` and
+/// `shape{i}.obj` / `shape{i}.pngfeat{0,1}.png`.
+pub fn is_asset_file(name: &str) -> bool {
+    if name == "mlp.json" {
+        return true;
+    }
+    let Some(rest) = name.strip_prefix("shape") else {
+        return false;
     };
-    std::fs::write(&tmp, data).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        io(e)
-    })?;
-    Ok(data.len() as u64)
+    let digits = rest.bytes().take_while(u8::is_ascii_digit).count();
+    digits > 0 && matches!(&rest[digits..], ".obj" | ".pngfeat0.png" | ".pngfeat1.png")
+}
+
+impl From<OutputError> for AssetError {
+    fn from(e: OutputError) -> Self {
+        AssetError::Invalid(e.to_string())
+    }
+}
+
+/// Writes `data` to `path` atomically ([`output::write_file`]: a
+/// temporary name unique to this writer, then a rename).
+pub fn write_atomic(path: &Path, data: &[u8]) -> Result<u64, AssetError> {
+    output::write_file(path, data).map_err(|e| match e {
+        OutputError::Io { cause, .. } => AssetError::Io {
+            path: path.to_path_buf(),
+            cause,
+        },
+        other => other.into(),
+    })
 }

@@ -351,6 +351,22 @@ pub fn file_bytes(asset: &Asset) -> Result<u64, AssetError> {
     Ok(json + shapes?.iter().sum::<u64>())
 }
 
+/// Bytes the texel stages hold per texel: occupancy before and after the
+/// quad filter (1 + 1), colour (3), the two RGBA atlas pages (8), rounded up.
+const BYTES_PER_TEXEL: u128 = 16;
+
+/// Refuses a bake whose texel buffers (quads × p² texels) would not fit in
+/// memory, before allocating them (an allocation failure aborts).
+fn texel_memory(quads: usize, patch: u32) -> Result<(), BakeError> {
+    let texels = quads as u128 * u128::from(patch) * u128::from(patch);
+    crate::validate::memory(
+        &format!("--patch {patch} with {quads} quads"),
+        texels * BYTES_PER_TEXEL,
+        &format!("{texels} texels at {BYTES_PER_TEXEL} B each (lower --patch or --grid)"),
+    )
+    .map_err(BakeError::BadParam)
+}
+
 /// Bakes one object from its training views.
 pub fn bake(views: &[BakeView<'_>], params: &BakeParams) -> Result<BakedObject, BakeError> {
     params.validate()?;
@@ -366,6 +382,7 @@ pub fn bake(views: &[BakeView<'_>], params: &BakeParams) -> Result<BakedObject, 
             let grid = carve::carve(&silhouettes, &cube, params.grid, params.voxel_test);
             t1 = Instant::now();
             let quads = quads::boundary_quads(&grid);
+            texel_memory(quads.len(), params.patch)?;
             let occ = carve::texel_occupancy(&silhouettes, &grid, &quads, params.patch);
             (quads, occ, grid.voxel, grid.occupied_count())
         }
@@ -373,6 +390,7 @@ pub fn bake(views: &[BakeView<'_>], params: &BakeParams) -> Result<BakedObject, 
             let grid = carve::shell(&silhouettes, &cube, params.grid);
             t1 = Instant::now();
             let quads = quads::shell_quads(&grid);
+            texel_memory(quads.len(), params.patch)?;
             let occ = carve::texel_occupancy_hull(&silhouettes, &quads, params.patch);
             let n = grid.count(carve::VoxelClass::Shell) + grid.count(carve::VoxelClass::Full);
             (quads, occ, grid.voxel, n)
@@ -475,6 +493,16 @@ fn validate_views(views: &[BakeView<'_>]) -> Result<(), BakeError> {
     }
     for (i, v) in views.iter().enumerate() {
         let k = &v.camera.intrinsics;
+        // Cameras built in code are checked as the files' are (finite and
+        // bounded in f32): a huge value would carve garbage or panic.
+        let c2w = v.camera.c2w.to_cols_array();
+        for (what, x) in [("fx", k.fx), ("fy", k.fy), ("cx", k.cx), ("cy", k.cy)]
+            .into_iter()
+            .chain(c2w.iter().map(|&x| ("c2w", x)))
+        {
+            crate::validate::f32_finite(what, x)
+                .map_err(|e| BakeError::BadViews(format!("view {i}: camera {e}")))?;
+        }
         if (k.width, k.height) != v.image.dimensions() {
             return Err(BakeError::BadViews(format!(
                 "view {i}: image is {}×{} but its camera is {}×{}",

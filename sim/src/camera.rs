@@ -246,7 +246,7 @@ impl Transforms {
     /// Reads and validates a transforms file (finite values, 4×4 rigid
     /// camera-to-world matrices, positive field of view).
     pub fn read(path: &Path) -> Result<Self, CameraError> {
-        let text = std::fs::read_to_string(path).map_err(|source| CameraError::Io {
+        let text = crate::validate::read_to_string(path).map_err(|source| CameraError::Io {
             path: path.to_path_buf(),
             source,
         })?;
@@ -267,10 +267,12 @@ impl Transforms {
             path: path.to_path_buf(),
             source,
         })?;
-        std::fs::write(path, text).map_err(|source| CameraError::Io {
-            path: path.to_path_buf(),
-            source,
-        })
+        crate::output::write_file(path, text.as_bytes())
+            .map(|_| ())
+            .map_err(|e| CameraError::Io {
+                path: path.to_path_buf(),
+                source: e.into_io(),
+            })
     }
 
     fn validate(&self) -> Result<(), String> {
@@ -289,11 +291,12 @@ impl Transforms {
         }
         for (i, f) in self.frames.iter().enumerate() {
             let m = &f.transform_matrix;
-            if m.iter().flatten().any(|v| !v.is_finite()) {
-                return Err(format!(
-                    "frame {i} ({}): transform_matrix has a non-finite value",
-                    f.file_path
-                ));
+            // Finite in f32 (the code's precision), not just in f64.
+            for (r, row) in m.iter().enumerate() {
+                for (c, &v) in row.iter().enumerate() {
+                    crate::validate::f32_value(&format!("transform_matrix[{r}][{c}]"), v)
+                        .map_err(|e| format!("frame {i} ({}): {e}", f.file_path))?;
+                }
             }
             let last = m[3];
             if (last[0].abs() + last[1].abs() + last[2].abs() + (last[3] - 1.0).abs()) > 1e-4 {
@@ -401,7 +404,8 @@ pub fn rows_from_mat4(m: &Mat4) -> [[f64; 4]; 4] {
 fn check_intrinsics(values: [Option<f64>; 4]) -> Result<(), String> {
     for (name, v) in ["fl_x", "fl_y", "cx", "cy"].into_iter().zip(values) {
         if let Some(v) = v {
-            if !v.is_finite() || (name.starts_with("fl") && v <= 0.0) {
+            crate::validate::f32_value(name, v)?;
+            if name.starts_with("fl") && v <= 0.0 {
                 return Err(format!("{name} = {v} is not valid"));
             }
         }

@@ -332,7 +332,7 @@ impl SceneInfo {
 
     /// Reads and validates `scene.json`.
     pub fn read(path: &Path) -> Result<Self, CaptureError> {
-        let text = std::fs::read_to_string(path).map_err(|source| CaptureError::Io {
+        let text = crate::validate::read_to_string(path).map_err(|source| CaptureError::Io {
             path: path.to_path_buf(),
             action: "cannot read",
             source,
@@ -674,7 +674,8 @@ fn load_frame(
 }
 
 fn decode(path: &Path) -> Result<DynamicImage, CaptureError> {
-    let reader = image::ImageReader::open(path)
+    let reader = crate::validate::regular_file(path)
+        .and_then(|()| image::ImageReader::open(path))
         .and_then(|r| r.with_guessed_format())
         .map_err(|source| CaptureError::Io {
             path: path.to_path_buf(),
@@ -691,21 +692,13 @@ fn decode(path: &Path) -> Result<DynamicImage, CaptureError> {
 /// rename, so a reader never sees a half-written file and a failure leaves
 /// the previous file intact.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CaptureError> {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
-    let io = |action, source| CaptureError::Io {
-        path: path.to_path_buf(),
-        action,
-        source,
-    };
-    std::fs::write(&tmp, bytes).map_err(|e| io("cannot write", e))?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        io("cannot rename into place", e)
-    })
+    crate::output::write_file(path, bytes)
+        .map(|_| ())
+        .map_err(|e| CaptureError::Io {
+            path: path.to_path_buf(),
+            action: "cannot write",
+            source: e.into_io(),
+        })
 }
 
 /// Encodes an image as PNG and writes it atomically.

@@ -213,7 +213,7 @@ impl Device {
     /// Reads a device TOML file.
     pub fn load(path: &Path) -> Result<Device, DeviceError> {
         let origin = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| DeviceError {
+        let text = crate::validate::read_to_string(path).map_err(|e| DeviceError {
             origin: origin.clone(),
             field: String::new(),
             message: format!("cannot read: {e}"),

@@ -100,11 +100,7 @@ pub enum FitError {
 /// Writes `bytes` to `path` through a temporary file beside it and a
 /// rename, so an existing file is never left half-written.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(".tmp");
-    let tmp = path.with_file_name(name);
-    std::fs::write(&tmp, bytes)?;
-    std::fs::rename(&tmp, path).inspect_err(|_| {
-        let _ = std::fs::remove_file(&tmp);
-    })
+    crate::output::write_file(path, bytes)
+        .map(|_| ())
+        .map_err(crate::output::OutputError::into_io)
 }

@@ -63,6 +63,12 @@ pub enum MetricsError {
         /// Height given (pixels).
         height: u32,
     },
+    /// The images are too large for this machine's memory.
+    #[error("{message}")]
+    TooLarge {
+        /// The size, the memory it needs and the limit.
+        message: String,
+    },
     /// A file could not be read.
     #[error("cannot read {}: {error}", path.display())]
     Io {
@@ -156,6 +162,28 @@ impl std::fmt::Display for Scores {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Metrics;
 
+/// Working memory per pixel of the two images: composites and SSIM planes
+/// (measured about 10 B, counted as 64) and LPIPS activations and im2col
+/// patches (measured about 150 B at 1024², counted as 200).
+const SSIM_BYTES_PER_PIXEL: u128 = 64;
+const LPIPS_BYTES_PER_PIXEL: u128 = 200;
+
+/// Refuses images whose metrics would not fit in memory, before any work
+/// (an allocation failure aborts the process).
+fn check_memory((w, h): (u32, u32), lpips: bool) -> Result<(), MetricsError> {
+    let per_pixel = SSIM_BYTES_PER_PIXEL + if lpips { LPIPS_BYTES_PER_PIXEL } else { 0 };
+    let pixels = u128::from(w) * u128::from(h);
+    crate::validate::memory(
+        &format!("comparing {w}×{h} images"),
+        pixels * per_pixel,
+        &format!(
+            "the metrics' working buffers ({per_pixel} B per pixel{})",
+            if lpips { " with LPIPS" } else { "" }
+        ),
+    )
+    .map_err(|message| MetricsError::TooLarge { message })
+}
+
 impl Metrics {
     /// SSIM, PSNR and (if weights are given) LPIPS of `a` against `b`,
     /// compositing each image over white only once.
@@ -165,6 +193,7 @@ impl Metrics {
         lpips: Option<&Lpips>,
     ) -> Result<Scores, MetricsError> {
         check_same_size(a.dimensions(), b.dimensions())?;
+        check_memory(a.dimensions(), lpips.is_some())?;
         let ca = WhiteComposite::new(a);
         let cb = WhiteComposite::new(b);
         Self::compare_composited(&ca, &cb, lpips)

@@ -101,14 +101,9 @@ pub fn save_png(pixmap: &Pixmap, path: &Path) -> Result<(), PlotError> {
         message,
     };
     let bytes = pixmap.encode_png().map_err(|e| fail(e.to_string()))?;
-    let mut tmp_name = path.file_name().unwrap_or_default().to_os_string();
-    tmp_name.push(".tmp");
-    let tmp = path.with_file_name(tmp_name);
-    std::fs::write(&tmp, bytes).map_err(|e| fail(e.to_string()))?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        fail(e.to_string())
-    })
+    crate::output::write_file(path, &bytes)
+        .map(|_| ())
+        .map_err(|e| fail(e.to_string()))
 }
 
 fn check_size(width: u32, height: u32) -> Result<Pixmap, PlotError> {

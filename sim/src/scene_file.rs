@@ -161,7 +161,7 @@ impl std::error::Error for SceneError {}
 /// Reads and validates a scene file.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let origin = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+    let text = crate::validate::read_to_string(path).map_err(|e| SceneError {
         origin: origin.clone(),
         field: String::new(),
         message: format!("cannot read: {e}"),
@@ -496,7 +496,18 @@ impl Parser<'_> {
             if arr.is_empty() {
                 return Err(self.err(&lpath, "empty list"));
             }
+            if arr.len() > MAX_CONFIGS {
+                return Err(self.err(
+                    &lpath,
+                    format!(
+                        "{} values; at most {MAX_CONFIGS} configurations are supported",
+                        arr.len()
+                    ),
+                ));
+            }
             let mut out = Vec::with_capacity(arr.len());
+            // O(log n) per value: a long list must not take quadratic time.
+            let mut seen = std::collections::BTreeSet::new();
             for (i, item) in arr.iter().enumerate() {
                 let ipath = format!("{lpath}[{i}]");
                 let v = item
@@ -506,7 +517,7 @@ impl Parser<'_> {
                     .ok_or_else(|| {
                         self.err(&ipath, format!("must be a positive integer, got {item}"))
                     })?;
-                if out.contains(&v) {
+                if !seen.insert(v) {
                     return Err(self.err(&ipath, format!("duplicate value {v}")));
                 }
                 out.push(v);

@@ -20,5 +20,5 @@ pub mod timeline;
 pub mod turntable;
 
 pub use output::{write_csv, write_json, write_plot};
-pub use timeline::{simulate, FrameRecord, LoadItem, SimOptions, Simulation};
+pub use timeline::{check_frames, simulate, FrameRecord, LoadItem, SimOptions, Simulation};
 pub use turntable::{CoverageSource, Turntable, TurntableSpec, ViewCoverage};

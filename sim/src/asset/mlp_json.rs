@@ -7,7 +7,7 @@ use std::path::Path;
 
 /// Reads `mlp.json`: weights and `obj_num`.
 pub fn read(path: &Path) -> Result<(MlpWeights, usize), AssetError> {
-    let text = std::fs::read_to_string(path).map_err(|cause| AssetError::Io {
+    let text = crate::validate::read_to_string(path).map_err(|cause| AssetError::Io {
         path: path.to_path_buf(),
         cause,
     })?;

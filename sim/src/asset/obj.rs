@@ -24,7 +24,7 @@ pub fn obj_from_world(p: [f32; 3]) -> [f32; 3] {
 
 /// Reads and parses `path`.
 pub fn read(path: &Path) -> Result<Vec<Quad>, AssetError> {
-    let text = std::fs::read_to_string(path).map_err(|cause| AssetError::Io {
+    let text = crate::validate::read_to_string(path).map_err(|cause| AssetError::Io {
         path: path.to_path_buf(),
         cause,
     })?;

@@ -18,10 +18,12 @@ pub fn read_rgba8(path: &Path) -> Result<RgbaImage, AssetError> {
         path: path.to_path_buf(),
         msg,
     };
-    let file = std::fs::File::open(path).map_err(|cause| AssetError::Io {
-        path: path.to_path_buf(),
-        cause,
-    })?;
+    let file = crate::validate::regular_file(path)
+        .and_then(|()| std::fs::File::open(path))
+        .map_err(|cause| AssetError::Io {
+            path: path.to_path_buf(),
+            cause,
+        })?;
     let mut dec = png::Decoder::new(BufReader::new(file));
     // A 16384² RGBA8 page is 1 GiB: allow that, not more.
     dec.set_limits(png::Limits {

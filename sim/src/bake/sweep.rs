@@ -11,7 +11,6 @@
 //! an interrupted sweep resumes where it stopped.
 
 use std::collections::BTreeMap;
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
@@ -90,14 +89,13 @@ pub fn write_csv(path: &Path, samples: &[Sample]) -> anyhow::Result<()> {
         text.push_str(&s.csv_line());
         text.push('\n');
     }
-    let tmp = path.with_extension("csv.tmp");
-    std::fs::write(&tmp, text).with_context(|| format!("{}: cannot write", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("{}: cannot write", path.display()))
+    crate::output::write_file(path, text.as_bytes())?;
+    Ok(())
 }
 
 /// Reads a samples CSV; errors name the line and the field.
 pub fn read_csv(path: &Path) -> anyhow::Result<Vec<Sample>> {
-    let text = std::fs::read_to_string(path)
+    let text = crate::validate::read_to_string(path)
         .with_context(|| format!("{}: cannot read", path.display()))?;
     let mut lines = text.lines().enumerate();
     match lines.next() {
@@ -168,7 +166,8 @@ impl Fnv64 {
 pub fn hash_files(files: &[PathBuf]) -> anyhow::Result<u64> {
     let mut h = Fnv64::default();
     for f in files {
-        let bytes = std::fs::read(f).with_context(|| format!("{}: cannot read", f.display()))?;
+        let bytes =
+            crate::validate::read(f).with_context(|| format!("{}: cannot read", f.display()))?;
         h.write(&(bytes.len() as u64).to_le_bytes());
         h.write(&bytes);
     }
@@ -496,21 +495,17 @@ impl Cache {
         (e.key == key).then_some(e.sample)
     }
 
-    /// Stores a sample (temporary file + rename).
+    /// Stores a sample (a temporary name unique to this writer, then a
+    /// rename: concurrent sweeps storing the same key do not collide).
     pub fn put(&self, key: &str, sample: &Sample) -> anyhow::Result<()> {
-        std::fs::create_dir_all(&self.dir)
-            .with_context(|| format!("{}: cannot create", self.dir.display()))?;
         let path = self.dir.join(format!("{key}.json"));
-        let tmp = self.dir.join(format!(".{key}.json.tmp"));
         let text = serde_json::to_string(&CacheEntry {
             key: key.to_string(),
             sample: sample.clone(),
         })?;
-        let mut f = std::fs::File::create(&tmp)
-            .with_context(|| format!("{}: cannot write", tmp.display()))?;
-        f.write_all(text.as_bytes())?;
-        drop(f);
-        std::fs::rename(&tmp, &path).with_context(|| format!("{}: cannot write", path.display()))
+        crate::output::create_parent(&path)?;
+        crate::output::write_file(&path, text.as_bytes())?;
+        Ok(())
     }
 }
 

@@ -154,7 +154,10 @@ pub fn load_objects(args: &Args) -> anyhow::Result<Vec<ObjectViews>> {
     for dir in &args.capture {
         let mut cap = Capture::load(dir)?;
         if let Some(n) = args.max_views {
-            cap.train.truncate(n.max(1));
+            if n == 0 {
+                bail!("--max-views 0: the bake needs at least 1 training view");
+            }
+            cap.train.truncate(n);
         }
         if let Some(n) = args.max_test_views {
             cap.test.truncate(n);
@@ -209,6 +212,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.out.is_none() && !args.measure {
         bail!("nothing to do: give --out DIR to write the asset and/or --measure");
     }
+    // Refuse outputs we may not replace before any work.
+    if let Some(out) = &args.out {
+        crate::output::check_replaceable(
+            out,
+            &crate::asset::is_asset_file,
+            "--out: an asset folder is replaced whole; move that away or choose another --out",
+        )?;
+    }
+    if let Some(dir) = args.renders.as_ref().filter(|_| args.measure) {
+        crate::output::check_replaceable(dir, &is_render_file, RENDERS_HINT)?;
+    }
     let t0 = Instant::now();
     let objects = load_objects(&args)?;
     let [obj] = objects.as_slice() else {
@@ -231,9 +245,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     let asset = baked.into_asset()?;
     let t2 = Instant::now();
-    let file_bytes = match &args.out {
-        Some(out) => asset.write(out)?,
-        None => bake::file_bytes(&asset)?,
+    // Built beside --out; moved into place only after the measurement.
+    let (staged, file_bytes) = match &args.out {
+        Some(out) => {
+            let (s, b) = asset.write_staged(out)?;
+            (Some(s), b)
+        }
+        None => (None, bake::file_bytes(&asset)?),
     };
     let t_write = t2.elapsed().as_secs_f64();
     println!(
@@ -258,9 +276,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "time: bake {t_bake:.2} s (carve {:.2}, quads {:.2}, views {:.2}, colour {:.2}, atlas {:.2}), encode+write {t_write:.2} s, load {t_load:.2} s",
         s.times.carve_s, s.times.quads_s, s.times.views_s, s.times.colour_s, s.times.atlas_s
     );
-    if let Some(out) = &args.out {
-        println!("wrote {}", out.display());
-    }
     if args.measure {
         let net = lpips(&args)?;
         let m = sweep::measure_views(
@@ -275,16 +290,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             println!("  test view {i}: {}", quality_line(v));
         }
         if let Some(dir) = &args.renders {
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("{}: cannot create", dir.display()))?;
+            let stage = crate::output::StagedDir::new(dir)?;
             for (i, (img, (_, truth))) in renders.iter().zip(&obj.test).enumerate() {
                 for (name, pic) in [("test", img), ("truth", truth)] {
-                    let path = dir.join(format!("{name}_{i}.png"));
+                    let path = stage.path().join(format!("{name}_{i}.png"));
                     compare::over_white(pic, args.renders_size)
                         .save(&path)
                         .with_context(|| format!("{}: cannot write", path.display()))?;
                 }
             }
+            stage.commit(&is_render_file, RENDERS_HINT)?;
         }
         println!(
             "quality over {} test views: {}",
@@ -292,7 +307,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             quality_line(&q)
         );
     }
+    if let (Some(out), Some(staged)) = (&args.out, staged) {
+        crate::asset::commit_asset_dir(staged)?;
+        println!("wrote {}", out.display());
+    }
     Ok(())
+}
+
+const RENDERS_HINT: &str =
+    "--renders: the folder is replaced whole; move that away or choose another --renders";
+
+/// `test_{i}.png` / `truth_{i}.png`: what `--renders` writes.
+fn is_render_file(name: &str) -> bool {
+    ["test_", "truth_"].iter().any(|p| {
+        name.strip_prefix(p)
+            .and_then(|r| r.strip_suffix(".png"))
+            .is_some_and(|d| !d.is_empty() && d.bytes().all(|b| b.is_ascii_digit()))
+    })
 }
 
 fn quality_line(q: &sweep::Quality) -> String {
@@ -386,10 +417,10 @@ fn run_compare(args: &Args, out: &std::path::Path) -> anyhow::Result<()> {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("{}: cannot create", dir.display()))?;
     }
-    let tmp = out.with_extension("tmp.png");
-    pic.save(&tmp)
-        .with_context(|| format!("{}: cannot write", tmp.display()))?;
-    std::fs::rename(&tmp, out).with_context(|| format!("{}: cannot write", out.display()))?;
+    let mut png = std::io::Cursor::new(Vec::new());
+    pic.write_to(&mut png, image::ImageFormat::Png)
+        .with_context(|| format!("{}: cannot encode", out.display()))?;
+    crate::output::write_file(out, png.get_ref())?;
     println!("wrote {}", out.display());
     Ok(())
 }

@@ -105,6 +105,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             None => Vec::new(),
         }
     };
+    // Check the real captures before the (long) scene work.
+    for dir in &real {
+        let t = dir.join("transforms_train.json");
+        crate::camera::Transforms::read(&t)
+            .with_context(|| format!("--real {}: not a capture folder", dir.display()))?;
+    }
     let opts = EvalOptions {
         pipeline,
         scenes: args.scenes.clone(),

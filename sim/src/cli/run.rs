@@ -82,9 +82,7 @@ impl PipelineArgs {
         let views = self.views.unwrap_or(defaults.train_views);
         let test_views = self.test_views.unwrap_or(defaults.test_views);
         let frames = self.frames.unwrap_or(defaults.frames);
-        if frames == 0 {
-            bail!("--frames: must be at least 1");
-        }
+        simulate::check_frames(frames).map_err(anyhow::Error::msg)?;
         if !(16..=2048).contains(&size) {
             bail!("--size: must be 16..=2048 pixels, got {size}");
         }
@@ -203,6 +201,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (None, Some(p)) => Input::Preset(p),
         (None, None) => bail!("give --capture DIR or --preset NAME"),
     };
+    if matches!(input, Input::Preset(_)) {
+        // Before anything is written into OUT.
+        crate::pipeline::stages::check_preset_capture(&args.out)?;
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("{}: cannot create", args.out.display()))?;
     args.pipeline.ignore_default_store(&args.out)?;

@@ -94,7 +94,7 @@ pub fn turntable_spec(
 }
 
 fn read_plan(path: &Path) -> anyhow::Result<Plan> {
-    let text = std::fs::read_to_string(path)
+    let text = crate::validate::read_to_string(path)
         .with_context(|| format!("{}: cannot read", path.display()))?;
     let plan: Plan = serde_json::from_str(&text).with_context(|| {
         format!(
@@ -141,6 +141,7 @@ pub fn summary(sim: &Simulation, what: &str) -> String {
 
 /// Runs `nerflex simulate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    simulate::check_frames(args.frames).map_err(anyhow::Error::msg)?;
     let device = Device::lookup(&args.device)?;
     let scene = scene_file::load(&args.scene)?;
     let spec = turntable_spec(

@@ -83,7 +83,7 @@ impl std::error::Error for SamplesError {}
 /// Reads and validates a samples CSV.
 pub fn read(path: &Path) -> Result<Vec<Sample>, SamplesError> {
     let origin = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| SamplesError {
+    let text = crate::validate::read_to_string(path).map_err(|e| SamplesError {
         origin: origin.clone(),
         line: 0,
         column: String::new(),

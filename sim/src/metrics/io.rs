@@ -10,7 +10,7 @@ const PNG_SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n
 ///
 /// Errors name the file: missing/unreadable, not a PNG, or broken PNG data.
 pub fn read_png(path: &Path) -> Result<RgbaImage, MetricsError> {
-    let bytes = std::fs::read(path).map_err(|error| MetricsError::Io {
+    let bytes = crate::validate::read(path).map_err(|error| MetricsError::Io {
         path: path.to_owned(),
         error,
     })?;

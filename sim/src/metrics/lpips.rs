@@ -93,7 +93,7 @@ impl Lpips {
     /// `lin{0..4}.kernel` (all F32). Errors name the file and the tensor.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, MetricsError> {
         let path = path.as_ref();
-        let bytes = std::fs::read(path).map_err(|error| MetricsError::Io {
+        let bytes = crate::validate::read(path).map_err(|error| MetricsError::Io {
             path: path.to_owned(),
             error,
         })?;
@@ -103,7 +103,11 @@ impl Lpips {
                 message: e.to_string(),
             }
         })?;
-        let get = |name: String, shape: &[usize]| tensor_f32(&st, path, &name, shape);
+        let get = |name: String, shape: &[usize]| {
+            let t = tensor_f32(&st, path, &name, shape)?;
+            check_values(path, &name, &t)?;
+            Ok::<_, MetricsError>(t)
+        };
         let mut convs = Vec::with_capacity(CONVS.len());
         let mut lins = Vec::with_capacity(CONVS.len());
         for (i, &(k, cin, cout, stride, pad)) in CONVS.iter().enumerate() {
@@ -240,6 +244,28 @@ impl Lpips {
             .collect();
         Ok(per_layer.iter().sum())
     }
+}
+
+/// Checks a tensor's values: all finite, and the `lin{i}.kernel` channel
+/// weights ≥ 0 as LPIPS documents them (they weight squared feature
+/// differences; a negative or NaN weight gives a meaningless distance).
+fn check_values(path: &Path, name: &str, t: &[f32]) -> Result<(), MetricsError> {
+    let bad = |message: String| MetricsError::WeightsFormat {
+        path: path.to_owned(),
+        message,
+    };
+    if let Some(i) = t.iter().position(|v| !v.is_finite()) {
+        return Err(bad(format!("tensor {name}[{i}] = {} is not finite", t[i])));
+    }
+    if name.starts_with("lin") {
+        if let Some(i) = t.iter().position(|&v| v < 0.0) {
+            return Err(bad(format!(
+                "tensor {name}[{i}] = {} is negative (LPIPS channel weights are ≥ 0)",
+                t[i]
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Reads an F32 tensor of the given shape, naming file and tensor on error.

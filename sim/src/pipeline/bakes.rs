@@ -96,11 +96,10 @@ impl BakeStore {
         drop(views);
         let (quads, gpu_bytes) = (baked.quads.len() as u64, baked.gpu_bytes());
         let asset = baked.into_asset()?;
-        let tmp = self.root.join(format!(".{key}.partial"));
-        if tmp.exists() {
-            std::fs::remove_dir_all(&tmp)
-                .with_context(|| format!("{}: cannot remove", tmp.display()))?;
-        }
+        // Built under a name unique to this writer: two runs baking the
+        // same key do not share a temporary folder.
+        let stage = crate::output::StagedDir::new(&dir)?;
+        let tmp = stage.path().to_path_buf();
         let size_bytes = asset
             .write(&tmp.join("asset"))
             .with_context(|| format!("writing {}", tmp.display()))?;
@@ -122,11 +121,10 @@ impl BakeStore {
             serde_json::to_string_pretty(&sample)?,
         )
         .with_context(|| format!("{}: cannot write", tmp.display()))?;
-        if dir.exists() {
-            std::fs::remove_dir_all(&dir)
-                .with_context(|| format!("{}: cannot replace", dir.display()))?;
-        }
-        std::fs::rename(&tmp, &dir).with_context(|| format!("{}: cannot write", dir.display()))?;
+        stage.commit(
+            &|n| n == "asset" || n == "sample.json",
+            "a bake store entry holds only asset/ and sample.json",
+        )?;
         Ok(Baked {
             sample,
             dir: dir.join("asset"),

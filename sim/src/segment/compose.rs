@@ -156,6 +156,16 @@ pub fn resize_capture(
             "resize: {width}×{height} is not an image size"
         )));
     }
+    // Every resized view (RGBA8 + mask, 5 B per pixel) is kept, plus about
+    // 64 B per pixel of resampling and spectrum buffers while one is worked on.
+    let frames = (cap.train.len() + cap.test.len()) as u128;
+    let pixels = u128::from(width) * u128::from(height);
+    crate::validate::memory(
+        &format!("--size: {width}×{height} pixels × {frames} views"),
+        pixels * (5 * frames + 64),
+        "the resized views (5 B per pixel each) and one view's working buffers (64 B per pixel)",
+    )
+    .map_err(SegmentError::Invalid)?;
     let resize = |frames: &Vec<SegFrame>| -> Vec<SegFrame> {
         frames
             .par_iter()

@@ -251,6 +251,10 @@ impl SegCapture {
 
 /// Reads one image as RGBA8, naming the file on failure.
 pub fn read_rgba(path: &Path) -> Result<RgbaImage, SegmentError> {
+    crate::validate::regular_file(path).map_err(|source| SegmentError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let img = image::open(path).map_err(|source| SegmentError::Image {
         path: path.to_path_buf(),
         source,

@@ -335,7 +335,7 @@ pub struct Timings {
 impl Segmentation {
     /// Reads and checks a `segmentation.json`.
     pub fn read(path: &Path) -> Result<Self, SegmentError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SegmentError::Io {
+        let text = crate::validate::read_to_string(path).map_err(|source| SegmentError::Io {
             path: path.to_path_buf(),
             source,
         })?;
@@ -410,11 +410,18 @@ pub fn segment(
             }
         }
     }
-    std::fs::create_dir_all(out).map_err(io(out))?;
+    // The output folder is replaced whole: built beside `out`, swapped in
+    // only when every group and segmentation.json are written, so a failure
+    // leaves the old segmentation as it was and a success leaves no stale
+    // group folders. Anything in `out` we did not write is refused first.
+    let ours = owned_entries(out);
+    let ours = |name: &str| ours.iter().any(|n| n == name);
+    crate::output::check_replaceable(out, &ours, SEGMENT_DIR_HINT)?;
+    let stage = crate::output::StagedDir::new(out)?;
     let t1 = std::time::Instant::now();
     let mut records = Vec::new();
     for g in &groups {
-        records.push(write_group(cap, g, &opts.enlarge, out)?);
+        records.push(write_group(cap, g, &opts.enlarge, stage.path())?);
     }
     let views_s = t1.elapsed().as_secs_f64();
     let seg = summary(cap, &analysis, &decisions, &groups, records, opts, {
@@ -426,11 +433,29 @@ pub fn segment(
     });
     let text = serde_json::to_string_pretty(&seg)
         .map_err(|e| SegmentError::Invalid(format!("cannot encode segmentation.json: {e}")))?;
-    let path = out.join(SEGMENTATION_FILE);
-    let tmp = out.join(format!(".{SEGMENTATION_FILE}.tmp"));
-    std::fs::write(&tmp, text).map_err(io(&tmp))?;
-    std::fs::rename(&tmp, &path).map_err(io(&path))?;
+    let path = stage.path().join(SEGMENTATION_FILE);
+    std::fs::write(&path, text).map_err(io(&path))?;
+    stage.commit(&ours, SEGMENT_DIR_HINT)?;
     Ok(seg)
+}
+
+const SEGMENT_DIR_HINT: &str =
+    "a segmentation folder is replaced whole; move that away or choose another --out";
+
+/// What a segmentation folder holds that we wrote: segmentation.json and
+/// the group folders it lists.
+fn owned_entries(out: &Path) -> Vec<String> {
+    let mut names = vec![SEGMENTATION_FILE.to_string()];
+    if let Ok(old) = Segmentation::read(&out.join(SEGMENTATION_FILE)) {
+        names.extend(old.groups.into_iter().map(|g| g.folder));
+    }
+    names
+}
+
+impl From<crate::output::OutputError> for SegmentError {
+    fn from(e: crate::output::OutputError) -> Self {
+        SegmentError::Invalid(e.to_string())
+    }
 }
 
 fn summary(

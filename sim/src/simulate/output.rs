@@ -34,15 +34,9 @@ pub fn csv_text(sim: &Simulation) -> String {
 /// Writes `text` to `path` through a temporary file and a rename, so an
 /// interrupted write never leaves a truncated file.
 pub fn write_text(path: &Path, text: &str) -> anyhow::Result<()> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("{}: cannot create", dir.display()))?;
-    }
-    let mut tmp_name = path.file_name().unwrap_or_default().to_os_string();
-    tmp_name.push(".tmp");
-    let tmp = path.with_file_name(tmp_name);
-    std::fs::write(&tmp, text).with_context(|| format!("{}: cannot write", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("{}: cannot write", path.display()))
+    crate::output::create_parent(path)?;
+    crate::output::write_file(path, text.as_bytes())?;
+    Ok(())
 }
 
 /// Writes the per-frame CSV.

@@ -112,6 +112,25 @@ pub struct Simulation {
     pub frames: Vec<FrameRecord>,
 }
 
+/// Bytes of output text per frame (a CSV line is about 64, a JSON record
+/// about 200): part of what a frame costs in memory.
+const FRAME_TEXT_BYTES: u128 = 256;
+
+/// Checks a simulation length before anything is loaded: at least 1, and
+/// a frame log (with its CSV/JSON text) that fits in memory, since a failed
+/// allocation aborts rather than errs.
+pub fn check_frames(frames: usize) -> Result<(), String> {
+    if frames == 0 {
+        return Err("--frames: must be at least 1".into());
+    }
+    let per_frame = std::mem::size_of::<FrameRecord>() as u128 + FRAME_TEXT_BYTES;
+    crate::validate::memory(
+        &format!("--frames {frames}"),
+        frames as u128 * per_frame,
+        &format!("the per-frame log ({per_frame} B per frame with its CSV/JSON text)"),
+    )
+}
+
 /// Runs the turntable on `device` for a scene whose objects load in the
 /// order of `items` (which must match the turntable's objects).
 pub fn simulate(
@@ -133,6 +152,7 @@ pub fn simulate(
             options.period_s
         );
     }
+    check_frames(options.frames).map_err(anyhow::Error::msg)?;
     let data: u64 = items
         .iter()
         .fold(0u64, |s, i| s.saturating_add(i.file_bytes));
