@@ -1,0 +1,96 @@
+//! `nerflex train` on a small built-in object (a mug, whose inside the
+//! visual hull fills): the trained field's held-out PSNR must clearly beat
+//! the visual-hull baker's on the same capture, and the saved field must
+//! load back bit for bit.
+
+use std::path::{Path, PathBuf};
+
+use nerflex_sim::bake::sweep::{bake_and_measure, fixed_point_render, ObjectViews};
+use nerflex_sim::bake::BakeParams;
+use nerflex_sim::capture::Capture;
+use nerflex_sim::metrics::Metrics;
+use nerflex_sim::procedural::{
+    arrange, make_capture, CaptureSpec, Layout, ObjectKind, RenderOptions,
+};
+use nerflex_sim::train::io;
+use nerflex_sim::train::trainer::{train, Level, TrainSettings};
+use nerflex_sim::train::view::render_view;
+
+/// One mug, 24 training and 4 held-out views at 64 px.
+fn capture(dir: &Path) -> PathBuf {
+    let spec = CaptureSpec {
+        objects: arrange(&[ObjectKind::Mug], Layout::Row, 1, 1.0),
+        layout: "row".into(),
+        preset: None,
+        seed: 3,
+        train_views: 24,
+        test_views: 4,
+        size: 64,
+        render: RenderOptions {
+            edge_samples: 0,
+            texture_samples: 0,
+            shadows: false,
+            ambient_occlusion: false,
+            ..RenderOptions::default()
+        },
+    };
+    let out = dir.join("mug");
+    make_capture(&spec, &out, &|| {}).unwrap();
+    out
+}
+
+/// Held-out PSNR margin of the field over the hull baker (dB). Measured
+/// when this was written: field 26.37 dB vs hull baker 25.05 dB (+1.3 dB,
+/// `docs/training.md`); the margin leaves room for float-order noise.
+const MARGIN_DB: f64 = 0.8;
+
+#[test]
+fn trained_field_beats_the_hull_baker_and_round_trips() {
+    let dir = tempfile::tempdir().unwrap();
+    let cap = Capture::load(capture(dir.path())).unwrap();
+    let views = ObjectViews::from_capture(&cap, None).unwrap();
+
+    let settings = TrainSettings {
+        levels: vec![
+            Level {
+                res: 32,
+                iters: 300,
+            },
+            Level {
+                res: 64,
+                iters: 300,
+            },
+        ],
+        batch: 2048,
+        ..TrainSettings::default()
+    };
+    let (grid, report) = train(&views, &settings, &|_, _, _, _| {}).unwrap();
+    let field_psnr: f64 = views
+        .test
+        .iter()
+        .map(|(cam, truth)| {
+            let img = render_view(&grid, cam, settings.step);
+            Metrics::compare(&img, truth, None).unwrap().psnr
+        })
+        .sum::<f64>()
+        / views.test.len() as f64;
+
+    let hull = bake_and_measure(&views, &BakeParams::new(64, 5), &fixed_point_render, None)
+        .unwrap()
+        .psnr;
+    eprintln!(
+        "field {field_psnr:.2} dB vs hull baker {hull:.2} dB (training {:.1} s)",
+        report.total_s
+    );
+    assert!(
+        field_psnr >= hull + MARGIN_DB,
+        "field {field_psnr:.2} dB is not {MARGIN_DB} dB above the hull baker's {hull:.2} dB"
+    );
+
+    // The saved field loads back bit for bit.
+    let path = dir.path().join("mug.safetensors");
+    io::save(&path, &grid, &settings, &report).unwrap();
+    let back = io::load(&path).unwrap();
+    assert_eq!(back.grid, grid);
+    assert_eq!(back.settings.as_ref(), Some(&settings));
+}
