@@ -20,7 +20,7 @@
 //!   `USAT`); its scale is `S_o / 2¹⁶`. `S_o` is the largest scale for which
 //!   every weight fits the chosen width and the accumulator cannot exceed
 //!   `i32` for any input, so nothing saturates or wraps.
-//! - The logits' scales are powers of two, `2^(24 − logit_lshift)` (at
+//! - The logits share one power-of-two scale, `2^(24 − logit_lshift)` (at
 //!   most Q24), shifted left to Q24 (clamped first: a clamped logit is
 //!   beyond ±64, where the 8-bit sigmoid is 0 or 255) and rounded to 8 bits
 //!   by the exact threshold sigmoid (a bucketed form of the same table).
@@ -86,8 +86,9 @@ pub struct NarrowMlp {
     pub l1: NarrowLayer<HIDDEN_PAIRS, GROUP, HIDDEN_GROUPS>,
     /// 16 (8 pairs) → 3 (one group), sigmoid.
     pub l2: NarrowLayer<HIDDEN_PAIRS, OUTPUTS, 1>,
-    /// Logit `o` in Q24 is `acc << logit_lshift[o]`, `acc` clamped first.
-    pub logit_lshift: [u8; OUTPUTS],
+    /// A logit in Q24 is `acc << logit_lshift`, `acc` clamped first (one
+    /// scale for all three: one clamp bound, one shift).
+    pub logit_lshift: u8,
     /// Largest weight magnitude allowed when the tables were built (127 or 32767).
     pub weight_max: i16,
 }
@@ -380,10 +381,11 @@ pub fn sigmoid_bucketed(z: i32) -> u8 {
 
 /// A logit accumulator in Q24: `acc << lshift`, `acc` first clamped so the
 /// shift cannot overflow (a clamped logit is beyond ±64, where the 8-bit
-/// sigmoid is 0 or 255).
+/// sigmoid is 0 or 255). Shifts are taken mod 32 (tables from
+/// `from_weights` never exceed 31).
 #[inline(always)]
 pub fn logit_q24(acc: i32, lshift: u8) -> i32 {
-    let s = u32::from(lshift.min(31));
+    let s = u32::from(lshift & 31);
     let lim = i32::MAX >> s;
     acc.clamp(-lim - 1, lim) << s
 }
@@ -404,8 +406,8 @@ impl NarrowMlp {
     pub fn logits_q24(&self, feat0: [u8; 4], feat1: [u8; 4], dir: ViewDir) -> [i32; OUTPUTS] {
         let z = self.logit_acc(&input_pairs(feat0, feat1, dir));
         let mut out = [0i32; OUTPUTS];
-        for ((o, &a), &s) in out.iter_mut().zip(z.iter()).zip(self.logit_lshift.iter()) {
-            *o = logit_q24(a, s);
+        for (o, &a) in out.iter_mut().zip(z.iter()) {
+            *o = logit_q24(a, self.logit_lshift);
         }
         out
     }
@@ -429,8 +431,7 @@ impl NarrowMlp {
         write_layer(out, "l0", &self.l0)?;
         write_layer(out, "l1", &self.l1)?;
         write_layer(out, "l2", &self.l2)?;
-        let [a, b, c] = self.logit_lshift;
-        writeln!(out, "    logit_lshift: [{a}, {b}, {c}],")?;
+        writeln!(out, "    logit_lshift: {},", self.logit_lshift)?;
         writeln!(out, "    weight_max: {},", self.weight_max)?;
         writeln!(out, "}};")
     }

@@ -291,15 +291,12 @@ fn main() -> ! {
     // The same tile with the narrow shader.
     let narrow = &generated::NARROW;
     let [c0, c1, c2, c3] = generated::NARROW_CHECK;
-    let [s0, s1, s2] = narrow.logit_lshift;
     hprintln!(
-        "narrow source={} fnv={:08x} weight_max={} logit_lshift={},{},{} check={},{},{},{} passes={}",
+        "narrow source={} fnv={:08x} weight_max={} logit_lshift={} check={},{},{},{} passes={}",
         generated::MLP_SOURCE,
         workload::narrow_hash(narrow),
         narrow.weight_max,
-        s0,
-        s1,
-        s2,
+        narrow.logit_lshift,
         c0,
         c1,
         c2,

@@ -212,7 +212,7 @@ pub fn narrow_hash(m: &NarrowMlp) -> u32 {
     hash_narrow_layer(&mut h, &m.l0);
     hash_narrow_layer(&mut h, &m.l1);
     hash_narrow_layer(&mut h, &m.l2);
-    h.bytes(&m.logit_lshift);
+    h.bytes(&[m.logit_lshift]);
     h.bytes(&m.weight_max.to_le_bytes());
     h.0
 }

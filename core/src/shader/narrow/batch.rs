@@ -32,8 +32,8 @@ pub fn shade_portable(m: &NarrowMlp, x: &BatchInput) -> [[u8; OUTPUTS]; LANES] {
             *d = row.get(lane).copied().unwrap_or(0);
         }
         let z = m.logit_acc(&xl);
-        for ((c, &a), &s) in o.iter_mut().zip(z.iter()).zip(m.logit_lshift.iter()) {
-            *c = sigmoid_bucketed(logit_q24(a, s));
+        for (c, &a) in o.iter_mut().zip(z.iter()) {
+            *c = sigmoid_bucketed(logit_q24(a, m.logit_lshift));
         }
     }
     out
@@ -63,10 +63,10 @@ pub mod avx2 {
         let h2 = relu_pack(&layer::<HIDDEN_PAIRS, GROUP, 4, HIDDEN>(&m.l1, &h1));
         let z = layer::<HIDDEN_PAIRS, OUTPUTS, 1, OUTPUTS>(&m.l2, &h2);
         let mut rgb = [[0u8; OUTPUTS]; LANES];
-        for (c, (&zc, &shift)) in z.iter().zip(m.logit_lshift.iter()).enumerate() {
-            let s = i32::from(shift.min(31));
-            let lim = _mm256_set1_epi32(i32::MAX >> s);
-            let low = _mm256_set1_epi32(-(i32::MAX >> s) - 1);
+        let s = i32::from(m.logit_lshift & 31);
+        let lim = _mm256_set1_epi32(i32::MAX >> s);
+        let low = _mm256_set1_epi32(-(i32::MAX >> s) - 1);
+        for (c, &zc) in z.iter().enumerate() {
             let clamped = _mm256_max_epi32(_mm256_min_epi32(zc, lim), low);
             let q = _mm256_sll_epi32(clamped, _mm_cvtsi32_si128(s));
             let k = sigmoid(q);

@@ -111,6 +111,7 @@ fn quantize_layer<
     input: &LayerIn<I, P>,
     wmax: i16,
     logit: bool,
+    k_cap: i32,
 ) -> Result<LayerOut<P, G, N>, ShaderError> {
     let mut out = LayerOut {
         layer: NarrowLayer {
@@ -162,7 +163,7 @@ fn quantize_layer<
             let half: i64;
             if logit {
                 // At most Q24 (finer gains nothing): a left shift to Q24.
-                let k = floor_log2(s).min(24);
+                let k = floor_log2(s).min(k_cap);
                 if 24 - k > 31 {
                     return Err(ShaderError::Unrepresentable {
                         layer,
@@ -271,6 +272,7 @@ impl NarrowMlp {
             },
             wmax,
             false,
+            24,
         )?;
         let hidden_pairs = hidden_pair_indices();
         let (s1, b1) = hidden_inputs(&l0);
@@ -285,25 +287,35 @@ impl NarrowMlp {
             },
             wmax,
             false,
+            24,
         )?;
         let (s2, b2) = hidden_inputs(&l1);
+        // The logits share one scale (one clamp and shift for all three):
+        // the coarsest any of them needs.
+        let logit_in = LayerIn {
+            scale: &s2,
+            bound: &b2,
+            pairs: &hidden_pairs,
+        };
+        let (w2, b2q) = (w.w2.map(|r| r.map(f64::from)), w.b2.map(f64::from));
+        let l2 = quantize_layer::<HIDDEN, OUTPUTS, HIDDEN_PAIRS, OUTPUTS, 1>(
+            2, &w2, &b2q, &logit_in, wmax, true, 24,
+        )?;
+        let lshift = l2.shift.iter().take(OUTPUTS).copied().max().unwrap_or(0);
         let l2 = quantize_layer::<HIDDEN, OUTPUTS, HIDDEN_PAIRS, OUTPUTS, 1>(
             2,
-            &w.w2.map(|r| r.map(f64::from)),
-            &w.b2.map(f64::from),
-            &LayerIn {
-                scale: &s2,
-                bound: &b2,
-                pairs: &hidden_pairs,
-            },
+            &w2,
+            &b2q,
+            &logit_in,
             wmax,
             true,
+            24 - i32::from(lshift),
         )?;
         Ok(Self {
             l0: l0.layer,
             l1: l1.layer,
             l2: l2.layer,
-            logit_lshift: [l2.shift[0], l2.shift[1], l2.shift[2]],
+            logit_lshift: l2.shift.iter().take(OUTPUTS).copied().max().unwrap_or(0),
             weight_max: wmax,
         })
     }

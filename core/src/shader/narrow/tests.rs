@@ -100,7 +100,7 @@ fn bad_weights_are_rejected_and_zero_weights_give_grey() {
     let mut s = std::string::String::new();
     m.write_rust(&mut s, "NARROW").unwrap();
     assert!(s.starts_with("pub const NARROW: NarrowMlp = NarrowMlp {"));
-    assert!(s.contains("logit_lshift: ["));
+    assert!(s.contains("logit_lshift: "));
 }
 
 /// The accumulator bound holds: the extreme inputs reproduce the `i64` sum.
@@ -166,7 +166,11 @@ fn random_tables(seed: u64) -> NarrowMlp {
         .iter_mut()
         .flatten()
         .for_each(|v| *v = next() as i32);
-    m.logit_lshift = [(next() % 40) as u8, (next() % 8) as u8, next() as u8];
+    m.logit_lshift = if seed % 2 == 0 {
+        (next() % 40) as u8
+    } else {
+        next() as u8
+    };
     m
 }
 
