@@ -16,6 +16,7 @@ fn args(asset: PathBuf, out: PathBuf, float: bool) -> Args {
         frame: None,
         size: "800".into(),
         float,
+        narrow: false,
         out,
     }
 }
@@ -38,12 +39,26 @@ fn render_command_writes_fixed_and_float_pngs_that_agree() {
     };
     let asset = data.join("mobilenerf/drums");
     let tmp = tempfile::tempdir().unwrap();
-    let (fixed, float) = (
+    let (fixed, float, narrow) = (
         tmp.path().join("drums.png"),
         tmp.path().join("drums_float.png"),
+        tmp.path().join("drums_narrow.png"),
     );
     run(args(asset.clone(), fixed.clone(), false)).unwrap();
     run(args(asset.clone(), float.clone(), true)).unwrap();
+    let mut n = args(asset.clone(), narrow.clone(), false);
+    n.narrow = true;
+    run(n).unwrap();
+    // The narrow shader is within one level of the exact one everywhere.
+    let c = image::open(&narrow).unwrap().to_rgba8();
+    let exact = image::open(&fixed).unwrap().to_rgba8();
+    let worst = c
+        .pixels()
+        .zip(exact.pixels())
+        .flat_map(|(p, q)| (0..4).map(move |k| (p.0[k] as i32 - q.0[k] as i32).abs()))
+        .max()
+        .unwrap();
+    assert!(worst <= 1, "narrow vs exact: {worst} levels apart");
     let a = image::open(&fixed).unwrap().to_rgba8();
     let b = image::open(&float).unwrap().to_rgba8();
     assert_eq!(a.dimensions(), (800, 800));

@@ -37,6 +37,11 @@ pub struct Args {
     /// Shade with the f32 MLP instead of the fixed-point one.
     #[arg(long)]
     pub float: bool,
+    /// Shade with the core's narrow (16-bit) fixed-point shader, eight
+    /// pixels at a time (AVX2 when the CPU has it), where the weight set
+    /// passes its accuracy check; the exact shader otherwise.
+    #[arg(long, conflicts_with = "float")]
+    pub narrow: bool,
     /// Output PNG.
     #[arg(long)]
     pub out: PathBuf,
@@ -111,10 +116,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     println!("asset: {}", asset.report());
     println!("loaded in {:.2} s", load_time.as_secs_f64());
     let opts = RenderOptions { float: args.float };
-    let (img, stats) = render(&asset, &cam, &opts);
-    if let Some(e) = stats.camera_error {
-        bail!("cannot render this camera: {e}");
-    }
+    let (img, stats) = if args.narrow {
+        let tables = crate::render::narrow_tables(&[&asset])
+            .map_err(|e| anyhow::anyhow!("{}: narrow shader: {e}", args.asset.display()))?;
+        if tables.iter().any(Option::is_none) {
+            println!("narrow shader: the weights fail its accuracy check; exact shader used");
+        }
+        crate::render::try_render_scene_narrow(&[&asset], &cam, &opts, &tables)
+            .map_err(|e| anyhow::anyhow!("cannot render this camera: {e}"))?
+    } else {
+        let (img, stats) = render(&asset, &cam, &opts);
+        if let Some(e) = stats.camera_error {
+            bail!("cannot render this camera: {e}");
+        }
+        (img, stats)
+    };
     let png =
         png_io::encode_rgba8(&img).map_err(|e| anyhow::anyhow!("{}: {e}", args.out.display()))?;
     write_atomic(&args.out, &png)?;
@@ -122,7 +138,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "{}×{} {} render: quads drawn {} of {} ({} visible), pixels shaded {}, time {:.1} ms -> {}",
         w,
         h,
-        if args.float { "f32" } else { "fixed-point" },
+        if args.float {
+            "f32"
+        } else if args.narrow {
+            "narrow fixed-point"
+        } else {
+            "fixed-point"
+        },
         stats.quads_drawn,
         stats.quads_total,
         stats.quads_visible,
@@ -158,6 +180,7 @@ mod tests {
             frame: None,
             size: "8".into(),
             float: false,
+            narrow: false,
             out: PathBuf::from("x.png"),
         }
     }
