@@ -21,7 +21,7 @@ const OBJ: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nv
 const TRANSFORMS: &str = r#"{"camera_angle_x": 0.69, "fl_x": 100.0, "w": 64, "h": 64, "frames": [
   {"file_path": "./train/r_0", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]},
   {"file_path": "./train/r_1", "fl_x": 90, "transform_matrix": [[0,-1,0,1],[1,0,0,0],[0,0,1,4],[0,0,0,1]]}]}"#;
-const SCENE: &str = include_str!("../../examples/scenes/two_objects_single.json");
+const SCENE: &str = include_str!("../../examples/scenes/illustrative_two_objects_single.json");
 const PROFILE_SCENE: &str = r#"{"objects": [{"name": "x", "profile": {"g": [8, 16], "p": [3, 5],
   "size": {"k": 1.0, "a": 1.0, "b": 1.0, "m": 0.0, "g_power": 2},
   "quality": {"k": 0.5, "a": 0.1, "b": 0.0, "m": 0.0}}}]}"#;

@@ -64,17 +64,12 @@ impl Adam {
                 if !dense && !shared.iter().any(|g| g.mark[s]) {
                     return;
                 }
-                for i in 0..len {
-                    let mut g = 0.0;
-                    for buf in shared {
-                        g += buf.grad[s * len + i];
-                    }
+                for (i, ((x, m), v)) in val.iter_mut().zip(m).zip(v).enumerate() {
+                    let g: f32 = shared.iter().map(|buf| buf.grad[s * len + i]).sum();
                     let lr = if i == 0 { lr_density } else { lr_color };
-                    m[i] = b1 * m[i] + (1.0 - b1) * g;
-                    v[i] = b2 * v[i] + (1.0 - b2) * g * g;
-                    let mh = m[i] / bc1;
-                    let vh = v[i] / bc2;
-                    val[i] -= lr * mh / (vh.sqrt() + eps);
+                    *m = b1 * *m + (1.0 - b1) * g;
+                    *v = b2 * *v + (1.0 - b2) * g * g;
+                    *x -= lr * (*m / bc1) / ((*v / bc2).sqrt() + eps);
                 }
             });
         grads.par_iter_mut().for_each(|g| g.clear(len));
@@ -98,8 +93,8 @@ mod tests {
             for (w, buf) in bufs.iter_mut().enumerate() {
                 buf.mark[0] = true;
                 buf.touched.push(0);
-                for i in 0..len {
-                    buf.grad[i] = 0.5 * 2.0 * (values[i] - (w as f32 + i as f32)) / 1.0;
+                for (i, (g, x)) in buf.grad.iter_mut().zip(&values).take(len).enumerate() {
+                    *g = *x - (w as f32 + i as f32);
                 }
             }
             adam.step(&mut values, len, &mut bufs, 0.05, 0.05);

@@ -199,10 +199,14 @@ impl SparseGrid {
     /// at compile time (the hot path).
     #[inline(always)]
     pub fn gather<const S: usize>(&self, corners: &Corners) -> [f32; S] {
-        let (recs, _) = self.values.as_chunks::<S>();
         let mut out = [0.0; S];
         for c in 0..8 {
-            if let Some(rec) = recs.get(corners.slot[c] as usize) {
+            let at = corners.slot[c] as usize * S;
+            let rec = self
+                .values
+                .get(at..at + S)
+                .and_then(|r| <&[f32; S]>::try_from(r).ok());
+            if let Some(rec) = rec {
                 let w = corners.weight[c];
                 for i in 0..S {
                     out[i] += w * rec[i];

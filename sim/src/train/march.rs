@@ -266,10 +266,14 @@ impl GradBuf {
 
     #[inline(always)]
     fn scatter<const S: usize>(&mut self, corners: &Corners, gv: &[f32; S]) {
-        let (recs, _) = self.grad.as_chunks_mut::<S>();
         for c in 0..8 {
             let s = corners.slot[c];
-            let Some(g) = recs.get_mut(s as usize) else {
+            let at = s as usize * S;
+            let Some(g) = self
+                .grad
+                .get_mut(at..at + S)
+                .and_then(|r| <&mut [f32; S]>::try_from(r).ok())
+            else {
                 continue;
             };
             if let Some(m) = self.mark.get_mut(s as usize) {

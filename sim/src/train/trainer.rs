@@ -208,10 +208,9 @@ fn refine(coarse: &SparseGrid, res: u32, keep: f32) -> SparseGrid {
             for dj in -1..=2 {
                 for di in -1..=2 {
                     let (a, b, c) = (i + di, j + dj, k + dk);
-                    if a >= 0 && b >= 0 && c >= 0 && a < m && b < m && c < m {
-                        if alive[((c * m + b) * m + a) as usize] {
-                            return true;
-                        }
+                    let inside = a >= 0 && b >= 0 && c >= 0 && a < m && b < m && c < m;
+                    if inside && alive[((c * m + b) * m + a) as usize] {
+                        return true;
                     }
                 }
             }
