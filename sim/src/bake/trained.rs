@@ -122,6 +122,10 @@ pub struct TrainedStats {
     pub opaque_texels: u64,
     /// Texels some training pixel shows (fine-tuned).
     pub trained_texels: u64,
+    /// Opaque texels no training pixel shows that took the features of
+    /// the nearest fine-tuned texel of their quad (the others, on quads
+    /// with no fine-tuned texel, keep the field's).
+    pub filled_texels: u64,
     /// Training pixels the geometry covers.
     pub train_pixels: u64,
     /// Mean squared error (per channel, [0, 1] units) of the MLP's fit to
@@ -229,6 +233,7 @@ pub fn bake(
         .collect();
     drop(gb);
     drop(slot_of);
+    drop(new_index);
     let mut features: Vec<[f32; net::FEATURES]> = slot_texel
         .iter()
         .map(|&t| init::decode_bytes(&texels[t as usize]))
@@ -252,6 +257,18 @@ pub fn bake(
             })
             .collect()
     };
+    if std::env::var("NERFLEX_DEBUG").is_ok() {
+        let mut se = [0f64; 3];
+        for (smp, px) in samples.iter().zip(pixels.iter().step_by(stride)) {
+            for k in 0..3 {
+                se[0] += f64::from(smp.target[k] - px.target[k]).powi(2);
+                se[1] += f64::from(smp.feat[k] - px.target[k]).powi(2);
+                se[2] += f64::from(smp.feat[k] - smp.target[k]).powi(2);
+            }
+        }
+        let n = 3.0 * samples.len() as f64;
+        eprintln!("debug psnr: field-vs-image {:.2}, feat-vs-image {:.2}, feat-vs-field {:.2}", -10.0 * (se[0] / n).log10(), -10.0 * (se[1] / n).log10(), -10.0 * (se[2] / n).log10());
+    }
     let (mut mlp, fit_mse) = init::fit_mlp(&samples, &params.fit);
     drop(samples);
     let t3 = Instant::now();
@@ -263,6 +280,12 @@ pub fn bake(
         let (f0, f1) = net::to_bytes(f, true);
         texels[t as usize] = [f0[0], f0[1], f0[2], f0[3], f1[0], f1[1], f1[2], f1[3]];
     }
+    let mut trained = vec![false; texels.len()];
+    for &t in &slot_texel {
+        trained[t as usize] = true;
+    }
+    let filled = fill_from_trained(&mut texels, &trained, &opacity, p);
+    drop(trained);
     let layout = AtlasLayout::new(quads.len(), p);
     let atlas = export::atlas(&layout, &texels);
     let t5 = Instant::now();
@@ -282,6 +305,7 @@ pub fn bake(
         kept_quads: quads.len() as u64,
         opaque_texels: opaque,
         trained_texels: slot_texel.len() as u64,
+        filled_texels: filled,
         train_pixels: pixels.len() as u64,
         fit_mse,
         finetune: report,
@@ -309,4 +333,41 @@ pub fn bake(
         },
     };
     Ok(TrainedBake { baked, stats })
+}
+
+/// Gives each opaque texel no training pixel showed the bytes of the
+/// nearest fine-tuned texel of the same quad: after the fine-tune the
+/// MLP reads features as the fine-tune left them, so a neighbour's code is
+/// a better guess than the field's initial one (held-out views see such
+/// texels at patch edges and grazing angles). Returns how many were filled.
+fn fill_from_trained(texels: &mut [[u8; 8]], trained: &[bool], opacity: &[bool], p: u32) -> u64 {
+    use rayon::prelude::*;
+    let p = p as usize;
+    let p2 = p * p;
+    texels
+        .par_chunks_mut(p2)
+        .zip(trained.par_chunks(p2).zip(opacity.par_chunks(p2)))
+        .map(|(tex, (tr, op))| {
+            let sources: Vec<usize> = (0..p2).filter(|&t| tr[t]).collect();
+            if sources.is_empty() {
+                return 0;
+            }
+            let mut n = 0;
+            for t in 0..p2 {
+                if !op[t] || tr[t] {
+                    continue;
+                }
+                let (x, y) = ((t % p) as i64, (t / p) as i64);
+                let d2 = |s: usize| {
+                    let (sx, sy) = ((s % p) as i64, (s / p) as i64);
+                    (sx - x).pow(2) + (sy - y).pow(2)
+                };
+                if let Some(&s) = sources.iter().min_by_key(|&&s| d2(s)) {
+                    tex[t] = tex[s];
+                    n += 1;
+                }
+            }
+            n
+        })
+        .sum()
 }

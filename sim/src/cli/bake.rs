@@ -91,6 +91,9 @@ pub struct Args {
     /// Comparison pictures and tables (boxed: keeps the CLI's enum small).
     #[command(flatten)]
     pub reports: Box<Reports>,
+    /// The trained baker's flags (`--baker`, `--field`, …).
+    #[command(flatten)]
+    pub trained: Box<super::bake_trained::TrainedArgs>,
     /// LPIPS weights (default: `lpips/` in the shared data folder; LPIPS is
     /// left out if absent).
     #[arg(long)]
@@ -196,6 +199,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.sweep {
         return run_sweep(&args);
     }
+    if args.reports.compare.is_some() && args.trained.baker()? == super::bake_trained::Baker::Trained {
+        bail!("--compare bakes with the hull baker only; drop --field/--baker trained");
+    }
     if !args.configs.is_empty() && args.reports.compare.is_none() {
         bail!("--configs needs --sweep or --compare");
     }
@@ -221,7 +227,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     params.search_box = obj.search_box;
     let t1 = Instant::now();
     let views = obj.bake_views();
-    let baked = bake::bake(&views, &params)?;
+    let baked = match args.trained.baker()? {
+        super::bake_trained::Baker::Hull => bake::bake(&views, &params)?,
+        super::bake_trained::Baker::Trained => super::bake_trained::bake(
+            &args.trained,
+            &args.capture[0],
+            args.object.first().map(String::as_str),
+            &views,
+            g,
+            p,
+        )?,
+    };
     let t_bake = t1.elapsed().as_secs_f64();
     let s = baked.stats;
     let (quads, pages, gpu_bytes) = (
@@ -232,7 +248,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let asset = baked.into_asset()?;
     let t2 = Instant::now();
     let file_bytes = match &args.out {
-        Some(out) => asset.write(out)?,
+        // Every page's PNGs encoded in parallel (same files as `Asset::write`).
+        Some(out) => bake::trained::export::write(&asset, out)?,
         None => bake::file_bytes(&asset)?,
     };
     let t_write = t2.elapsed().as_secs_f64();

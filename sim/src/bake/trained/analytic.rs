@@ -3,18 +3,14 @@
 //!
 //! Density is a thin ramp across a signed distance function's zero set
 //! (σ = σ_max at `band/2` inside, 0 at `band/2` outside), so the surface the
-//! baker extracts is the SDF's. Colour is an approximation of the built-in
-//! renderer's shading (albedo under a key light, a fill and an ambient
-//! term, plus a Blinn–Phong highlight that moves with the view, through
-//! the same display curve) — deliberately not exact: the fine-tune has to
-//! close the gap against the captured images, as it must for a trained
-//! field's errors.
+//! baker extracts is the SDF's. The built-in objects' colour is the
+//! built-in renderer's shading of the nearest surface point.
 
 use glam::Vec3;
 
 use super::super::Aabb;
 use crate::capture::ObjectInfo;
-use crate::procedural::{render::display, ObjectKind, Placement};
+use crate::procedural::{ObjectKind, PlacedObject, Placement, RenderOptions, SceneRenderer};
 use crate::train::field::RadianceField;
 
 /// Peak density of the analytic fields, per world unit: opaque within a
@@ -76,23 +72,30 @@ impl RadianceField for Sphere {
     }
 }
 
-/// A built-in procedural object where a capture placed it.
-#[derive(Debug, Clone, Copy)]
+/// A built-in procedural object where a capture placed it: density from
+/// its SDF, colour from the built-in renderer's own shading of the nearest
+/// surface point (so the field plays a well-trained one; the images differ
+/// from it only by antialiasing and any lighting the capture turned off).
 pub struct Builtin {
     /// Which object.
     pub kind: ObjectKind,
     /// Local → world.
     pub placement: Placement,
-    /// Texture frequency multiplier.
-    pub detail: f32,
     /// World box the field lives in.
     pub bounds: Aabb,
+    renderer: SceneRenderer,
+    opts: RenderOptions,
 }
 
-/// Approximate lights (directions toward the light, world frame).
-const KEY: (Vec3, Vec3) = (Vec3::new(0.478, -0.382, 0.791), Vec3::new(2.35, 2.2, 2.0));
-const FILL: (Vec3, Vec3) = (Vec3::new(-0.73, 0.61, 0.31), Vec3::new(0.32, 0.38, 0.48));
-const AMBIENT: Vec3 = Vec3::new(0.31, 0.33, 0.37);
+impl std::fmt::Debug for Builtin {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Builtin")
+            .field("kind", &self.kind)
+            .field("placement", &self.placement)
+            .field("bounds", &self.bounds)
+            .finish()
+    }
+}
 
 impl Builtin {
     /// The field of an object of a built-in capture's `scene.json`; `None`
@@ -113,11 +116,18 @@ impl Builtin {
             Vec3::from_array(info.bounds_max.map(|v| v as f32)),
         );
         let margin = 0.1 * (hi - lo).max_element() + 0.01;
-        Some(Self {
+        let placed = PlacedObject {
+            name: info.name.clone(),
             kind,
             placement,
             detail,
+        };
+        Some(Self {
+            kind,
+            placement,
             bounds: Aabb { min: lo, max: hi }.grown(margin),
+            renderer: SceneRenderer::new(&[placed]),
+            opts: RenderOptions::default(),
         })
     }
 
@@ -147,30 +157,22 @@ impl RadianceField for Builtin {
     }
 
     fn color(&self, p: Vec3, dir: Vec3) -> Vec3 {
-        let local = self.placement.to_local(p);
-        let h = 2e-3;
-        let k = [
-            Vec3::new(1.0, -1.0, -1.0),
-            Vec3::new(-1.0, -1.0, 1.0),
-            Vec3::new(-1.0, 1.0, -1.0),
-            Vec3::new(1.0, 1.0, 1.0),
-        ];
-        let nl = k
-            .iter()
-            .fold(Vec3::ZERO, |acc, &e| acc + e * self.kind.sdf(local + e * h))
-            .normalize_or(Vec3::Z);
-        let m = self.kind.material(local, nl, self.detail);
-        let n = self.placement.dir_to_world(nl);
-        let v = -dir;
-        let mut diffuse = AMBIENT * (0.75 + 0.25 * n.z);
-        let mut spec = Vec3::ZERO;
-        for (l, c) in [KEY, FILL] {
-            let ndl = n.dot(l).max(0.0);
-            diffuse += c * ndl;
-            let ndh = n.dot((l + v).normalize_or_zero()).max(0.0);
-            spec += c * ndl * ndh.powf(m.shininess) * (m.shininess + 8.0) / 25.0;
+        // Two Newton steps onto the surface, then the renderer's shading.
+        let mut q = p;
+        for _ in 0..2 {
+            let h = 1e-3;
+            let d = self.sdf(q);
+            let grad = Vec3::new(
+                self.sdf(q + Vec3::X * h) - self.sdf(q - Vec3::X * h),
+                self.sdf(q + Vec3::Y * h) - self.sdf(q - Vec3::Y * h),
+                self.sdf(q + Vec3::Z * h) - self.sdf(q - Vec3::Z * h),
+            ) / (2.0 * h);
+            if grad.length_squared() > 1e-6 {
+                q -= d * grad / grad.length_squared();
+            }
         }
-        let spec_rgb = Vec3::splat(m.specular).lerp(m.albedo, m.metal);
-        display(m.albedo * (1.0 - 0.85 * m.metal) * diffuse + spec_rgb * spec)
+        self.renderer
+            .surface_colour(0, q, dir, &self.opts)
+            .clamp(Vec3::ZERO, Vec3::ONE)
     }
 }

@@ -113,8 +113,16 @@ pub fn rasterize(
                             return;
                         }
                     }
+                    // Where the image shows (mostly) background the geometry
+                    // is off by a texel at most: a white target there would
+                    // only teach a surface texel to be white (geometry is
+                    // fixed), so such pixels give no target.
+                    let cov = v.coverage(x, y);
+                    if cov < 128 {
+                        return;
+                    }
                     let px = v.image.get_pixel(x, y).0;
-                    let a = f32::from(v.coverage(x, y)) / 255.0;
+                    let a = f32::from(cov) / 255.0;
                     let c = |k: usize| f32::from(px[k]) / 255.0 * a + (1.0 - a);
                     out.push(GPixel {
                         texel: s.quad * p * p + ly * p + lx,
