@@ -429,6 +429,36 @@ fn run_sweep(args: &Args) -> anyhow::Result<()> {
         cache: (!args.no_cache).then(|| Cache::new(&cache_dir)),
         lpips: net.as_ref(),
         progress: true,
+        trained: None,
+    };
+    // The trained baker: one field per object, in load_objects' order.
+    let fields = match (args.trained.baker()?, &args.trained.field) {
+        (super::bake_trained::Baker::Trained, Some(spec)) => {
+            let mut v = Vec::new();
+            let mut oi = 0;
+            for dir in &args.capture {
+                let names: Vec<Option<&str>> = if args.object.is_empty() {
+                    vec![None]
+                } else {
+                    args.object.iter().map(|n| Some(n.as_str())).collect()
+                };
+                for name in names {
+                    let obj_name = name.unwrap_or(objects[oi].name.as_str());
+                    v.push(super::bake_trained::load_field_with_id(spec, dir, obj_name)?);
+                    oi += 1;
+                }
+            }
+            Some(v)
+        }
+        _ => None,
+    };
+    let opts = SweepOptions {
+        trained: fields.as_ref().map(|v| sweep::TrainedSweep {
+            fields: v.iter().map(|(f, _)| f.as_ref()).collect(),
+            field_ids: v.iter().map(|(_, id)| id.clone()).collect(),
+            params: args.trained.params(0, 0),
+        }),
+        ..opts
     };
     let t0 = Instant::now();
     let report = sweep::run(&objects, &opts, &sweep::fixed_point_render)?;

@@ -74,6 +74,39 @@ impl TrainedArgs {
     }
 }
 
+/// The field `spec` names for `object` of the capture in `capture` and a
+/// string identifying its content (for sweep cache keys). A folder `spec`
+/// holds one field per object: `{spec}/{object}.safetensors`.
+pub fn load_field_with_id(
+    spec: &Path,
+    capture: &Path,
+    object: &str,
+) -> anyhow::Result<(Box<dyn RadianceField>, String)> {
+    if spec.as_os_str() == "builtin" {
+        let scene = capture.join("scene.json");
+        let id = format!(
+            "builtin {:016x}",
+            crate::bake::sweep::hash_files(std::slice::from_ref(&scene))?
+        );
+        let name = SceneInfo::read(&scene)
+            .ok()
+            .and_then(|s| (s.objects.len() > 1).then(|| object.to_string()));
+        return Ok((load_field(spec, capture, name.as_deref())?, id));
+    }
+    let file = if spec.is_dir() {
+        spec.join(format!("{object}.safetensors"))
+    } else {
+        spec.to_path_buf()
+    };
+    let id = format!(
+        "{} {:016x}",
+        file.display(),
+        crate::bake::sweep::hash_files(std::slice::from_ref(&file))
+            .with_context(|| format!("--field: cannot read {}", file.display()))?
+    );
+    Ok((load_field(&file, capture, Some(object))?, id))
+}
+
 /// Loads the field `spec` names for `object` of the capture in `capture`.
 pub fn load_field(
     spec: &Path,
