@@ -40,7 +40,10 @@ fn capture(dir: &Path, kind: ObjectKind, size: u32, train_views: usize) -> PathB
 }
 
 fn field_of(cap: &Capture) -> Builtin {
-    let scene = cap.scene.as_ref().expect("built-in captures have scene.json");
+    let scene = cap
+        .scene
+        .as_ref()
+        .expect("built-in captures have scene.json");
     Builtin::from_info(&scene.objects[0]).expect("a built-in kind")
 }
 
@@ -79,7 +82,10 @@ fn on_a_lattice_the_trained_baker_beats_the_hull_bakers_ssim() {
         sweep::measure_views(a, &obj.test, &sweep::fixed_point_render, None, true).unwrap()
     };
     let (mh, mt) = (measure(&hull), measure(&ours));
-    let (ih, it) = (coverage_iou(&mh.renders, &obj.test), coverage_iou(&mt.renders, &obj.test));
+    let (ih, it) = (
+        coverage_iou(&mh.renders, &obj.test),
+        coverage_iou(&mt.renders, &obj.test),
+    );
     eprintln!(
         "held-out: hull PSNR {:.2} dB, SSIM {:.4}, coverage IoU {ih:.4}; trained PSNR {:.2} dB, SSIM {:.4}, coverage IoU {it:.4}",
         mh.mean.psnr, mh.mean.ssim, mt.mean.psnr, mt.mean.ssim
@@ -93,7 +99,10 @@ fn on_a_lattice_the_trained_baker_beats_the_hull_bakers_ssim() {
         mh.mean.ssim
     );
     // Neither baker loses coverage (IoU 0.93 both when written).
-    assert!(it >= ih - 0.01, "coverage IoU: trained {it:.4} vs hull {ih:.4}");
+    assert!(
+        it >= ih - 0.01,
+        "coverage IoU: trained {it:.4} vs hull {ih:.4}"
+    );
     // Colour: the fine-tune must at least hold the hull's held-out PSNR.
     assert!(
         mt.mean.psnr >= mh.mean.psnr - 0.5,
@@ -164,5 +173,9 @@ fn the_export_round_trips_and_the_renderer_reproduces_the_finetune_shader() {
     }
     let psnr = 10.0 * (255.0f64 * 255.0 / (se / n as f64)).log10();
     eprintln!("float renders over the training pixels: {psnr:.4} dB; fine-tune: {report:?}");
-    assert!((psnr - report.psnr_after).abs() < 1e-3, "{psnr} vs {}", report.psnr_after);
+    assert!(
+        (psnr - report.psnr_after).abs() < 1e-3,
+        "{psnr} vs {}",
+        report.psnr_after
+    );
 }

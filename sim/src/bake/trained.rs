@@ -210,9 +210,8 @@ pub fn bake(
     }
     let t2 = Instant::now();
 
-    // Features from the field; one trained slot per texel a pixel shows.
-    let mut texels = init::texel_bytes(field, &quads, &opacity, p, &dirs);
-    let mut slot_of = vec![u32::MAX; texels.len()];
+    // One trained slot per texel a pixel shows.
+    let mut slot_of = vec![u32::MAX; opacity.len()];
     let mut slot_texel: Vec<u32> = Vec::new();
     let pixels: Vec<finetune::TrainPixel> = gb
         .pixels
@@ -234,6 +233,22 @@ pub fn bake(
     drop(gb);
     drop(slot_of);
     drop(new_index);
+    let mut trained = vec![false; opacity.len()];
+    for &t in &slot_texel {
+        trained[t as usize] = true;
+    }
+    // Features from the field, for the texels that keep them: the trained
+    // ones (their starting point) and those of quads without a trained
+    // texel (the others take a trained neighbour's after the fine-tune).
+    let need: Vec<bool> = trained
+        .chunks(p2)
+        .flat_map(|tr| {
+            let any = tr.iter().any(|&t| t);
+            tr.iter().map(move |&t| t || !any)
+        })
+        .collect();
+    let mut texels = init::texel_bytes(field, &quads, &opacity, &need, p, &dirs);
+    drop(need);
     let mut features: Vec<[f32; net::FEATURES]> = slot_texel
         .iter()
         .map(|&t| init::decode_bytes(&texels[t as usize]))
@@ -267,7 +282,12 @@ pub fn bake(
             }
         }
         let n = 3.0 * samples.len() as f64;
-        eprintln!("debug psnr: field-vs-image {:.2}, feat-vs-image {:.2}, feat-vs-field {:.2}", -10.0 * (se[0] / n).log10(), -10.0 * (se[1] / n).log10(), -10.0 * (se[2] / n).log10());
+        eprintln!(
+            "debug psnr: field-vs-image {:.2}, feat-vs-image {:.2}, feat-vs-field {:.2}",
+            -10.0 * (se[0] / n).log10(),
+            -10.0 * (se[1] / n).log10(),
+            -10.0 * (se[2] / n).log10()
+        );
     }
     let (mut mlp, fit_mse) = init::fit_mlp(&samples, &params.fit);
     drop(samples);
@@ -279,10 +299,6 @@ pub fn bake(
     for (f, &t) in features.iter().zip(&slot_texel) {
         let (f0, f1) = net::to_bytes(f, true);
         texels[t as usize] = [f0[0], f0[1], f0[2], f0[3], f1[0], f1[1], f1[2], f1[3]];
-    }
-    let mut trained = vec![false; texels.len()];
-    for &t in &slot_texel {
-        trained[t as usize] = true;
     }
     let filled = fill_from_trained(&mut texels, &trained, &opacity, p);
     drop(trained);
@@ -336,10 +352,12 @@ pub fn bake(
 }
 
 /// Gives each opaque texel no training pixel showed the bytes of the
-/// nearest fine-tuned texel of the same quad: after the fine-tune the
-/// MLP reads features as the fine-tune left them, so a neighbour's code is
-/// a better guess than the field's initial one (held-out views see such
-/// texels at patch edges and grazing angles). Returns how many were filled.
+/// nearest fine-tuned texel of the same quad (breadth-first over the p×p
+/// grid, 4-neighbours: nearest in city-block distance): after the
+/// fine-tune the MLP reads features as the fine-tune left them, so a
+/// neighbour's code is a better guess than the field's initial one
+/// (held-out views see such texels at patch edges and grazing angles).
+/// Returns how many were filled.
 fn fill_from_trained(texels: &mut [[u8; 8]], trained: &[bool], opacity: &[bool], p: u32) -> u64 {
     use rayon::prelude::*;
     let p = p as usize;
@@ -347,27 +365,55 @@ fn fill_from_trained(texels: &mut [[u8; 8]], trained: &[bool], opacity: &[bool],
     texels
         .par_chunks_mut(p2)
         .zip(trained.par_chunks(p2).zip(opacity.par_chunks(p2)))
-        .map(|(tex, (tr, op))| {
-            let sources: Vec<usize> = (0..p2).filter(|&t| tr[t]).collect();
-            if sources.is_empty() {
-                return 0;
-            }
-            let mut n = 0;
-            for t in 0..p2 {
-                if !op[t] || tr[t] {
-                    continue;
+        .map_init(
+            || (Vec::with_capacity(p2), vec![false; p2]),
+            |(queue, reached), (tex, (tr, op))| {
+                queue.clear();
+                for (t, r) in reached.iter_mut().enumerate() {
+                    *r = tr[t];
+                    if tr[t] {
+                        queue.push(t);
+                    }
                 }
-                let (x, y) = ((t % p) as i64, (t / p) as i64);
-                let d2 = |s: usize| {
-                    let (sx, sy) = ((s % p) as i64, (s / p) as i64);
-                    (sx - x).pow(2) + (sy - y).pow(2)
-                };
-                if let Some(&s) = sources.iter().min_by_key(|&&s| d2(s)) {
-                    tex[t] = tex[s];
-                    n += 1;
+                if queue.is_empty() {
+                    return 0;
                 }
-            }
-            n
-        })
+                let mut n = 0;
+                let mut head = 0;
+                while head < queue.len() {
+                    let t = queue[head];
+                    head += 1;
+                    let (x, y) = (t % p, t / p);
+                    let mut visit = |u: usize| {
+                        if !reached[u] {
+                            reached[u] = true;
+                            // Empty texels pass the code on, then are cleared.
+                            tex[u] = tex[t];
+                            n += u64::from(op[u]);
+                            queue.push(u);
+                        }
+                    };
+                    if x > 0 {
+                        visit(t - 1);
+                    }
+                    if x + 1 < p {
+                        visit(t + 1);
+                    }
+                    if y > 0 {
+                        visit(t - p);
+                    }
+                    if y + 1 < p {
+                        visit(t + p);
+                    }
+                }
+                // Empty texels carried codes only to pass them on: clear them.
+                for (b, &o) in tex.iter_mut().zip(op.iter()) {
+                    if !o {
+                        *b = [0; 8];
+                    }
+                }
+                n
+            },
+        )
         .sum()
 }

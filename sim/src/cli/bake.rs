@@ -199,7 +199,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.sweep {
         return run_sweep(&args);
     }
-    if args.reports.compare.is_some() && args.trained.baker()? == super::bake_trained::Baker::Trained {
+    if args.reports.compare.is_some()
+        && args.trained.baker()? == super::bake_trained::Baker::Trained
+    {
         bail!("--compare bakes with the hull baker only; drop --field/--baker trained");
     }
     if !args.configs.is_empty() && args.reports.compare.is_none() {
@@ -444,7 +446,9 @@ fn run_sweep(args: &Args) -> anyhow::Result<()> {
                 };
                 for name in names {
                     let obj_name = name.unwrap_or(objects[oi].name.as_str());
-                    v.push(super::bake_trained::load_field_with_id(spec, dir, obj_name)?);
+                    v.push(super::bake_trained::load_field_with_id(
+                        spec, dir, obj_name,
+                    )?);
                     oi += 1;
                 }
             }

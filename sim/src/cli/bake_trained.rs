@@ -127,7 +127,10 @@ pub fn load_field(
                 .with_context(|| format!("{}: no object `{name}`", path.display()))?,
             None => match scene.objects.as_slice() {
                 [one] => one,
-                _ => bail!("{}: several objects; pick one with --object", path.display()),
+                _ => bail!(
+                    "{}: several objects; pick one with --object",
+                    path.display()
+                ),
             },
         };
         let field = Builtin::from_info(info).with_context(|| {

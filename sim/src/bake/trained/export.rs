@@ -70,7 +70,9 @@ pub fn write(asset: &Asset, dir: &Path) -> Result<u64, AssetError> {
         .par_iter()
         .flat_map_iter(|s| {
             let [o, p0, p1] = asset::shape_files(s.index);
-            [(o, 0u8), (p0, 1), (p1, 2)].into_iter().map(move |(n, k)| (s, n, k))
+            [(o, 0u8), (p0, 1), (p1, 2)]
+                .into_iter()
+                .map(move |(n, k)| (s, n, k))
         })
         .map(|(s, name, k)| {
             let bytes = match k {

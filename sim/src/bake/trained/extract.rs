@@ -212,7 +212,10 @@ mod tests {
         let g = extract(&s, 16, 5).expect("a sphere has an inside");
         // The cube hugs the sphere (within a coarse cell or two).
         let edge = (g.cube.max - g.cube.min).max_element();
-        assert!(edge > 1.2 && edge < 1.2 + 4.0 * 3.0 / COARSE as f32, "cube edge {edge}");
+        assert!(
+            edge > 1.2 && edge < 1.2 + 4.0 * 3.0 / COARSE as f32,
+            "cube edge {edge}"
+        );
         assert!(g.shell_voxels > 0 && g.full_voxels > 0);
         // Every opaque texel is inside, and within a voxel of the surface.
         for (q, occ) in g.quads.iter().zip(g.opacity.chunks(25)) {
@@ -222,7 +225,10 @@ mod tests {
                 if o {
                     // The field's surface: half its 0.01 density ramp out.
                     assert!(r <= 0.6 + 0.005, "opaque texel outside: r = {r}");
-                    assert!(r >= 0.6 - 2.0 * g.voxel, "opaque texel deep inside: r = {r}");
+                    assert!(
+                        r >= 0.6 - 2.0 * g.voxel,
+                        "opaque texel deep inside: r = {r}"
+                    );
                 }
             }
         }

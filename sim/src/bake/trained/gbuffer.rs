@@ -57,8 +57,8 @@ pub fn rasterize(
         .par_iter()
         .enumerate()
         .map(|(vi, v)| {
-            let view = view_of(&v.camera)
-                .map_err(|e| BakeError::BadViews(format!("view {vi}: {e:?}")))?;
+            let view =
+                view_of(&v.camera).map_err(|e| BakeError::BadViews(format!("view {vi}: {e:?}")))?;
             let mut id = 0u32;
             let mut projected = Vec::new();
             for (pi, part) in parts.iter().enumerate() {

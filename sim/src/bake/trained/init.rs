@@ -16,9 +16,9 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
+use super::super::quads::Quad;
 use super::extract::texel_point;
 use super::net::{self, Adam, FEATURES};
-use super::super::quads::Quad;
 use crate::train::field::RadianceField;
 use nerflex_core::shader::MlpWeights;
 
@@ -31,22 +31,24 @@ pub fn features_of(c: Vec3) -> [f32; FEATURES] {
 }
 
 /// Atlas bytes (feat0 then feat1) of every texel of every quad: occupied
-/// texels from the field's colour along `quad_dirs[q]`, empty ones 0.
+/// texels where `need` holds from the field's colour along `quad_dirs[q]`,
+/// all others 0 (a caller fills the occupied ones it did not need).
 pub fn texel_bytes(
     field: &dyn RadianceField,
     quads: &[Quad],
     opacity: &[bool],
+    need: &[bool],
     p: u32,
     quad_dirs: &[Vec3],
 ) -> Vec<[u8; 8]> {
     let p2 = (p * p) as usize;
     let mut out = vec![[0u8; 8]; quads.len() * p2];
     out.par_chunks_mut(p2)
-        .zip(opacity.par_chunks(p2))
+        .zip(opacity.par_chunks(p2).zip(need.par_chunks(p2)))
         .zip(quads.par_iter().zip(quad_dirs))
-        .for_each(|((texels, occ), (q, &d))| {
-            for (t, (b, &o)) in texels.iter_mut().zip(occ).enumerate() {
-                if !o {
+        .for_each(|((texels, (occ, need)), (q, &d))| {
+            for (t, ((b, &o), &n)) in texels.iter_mut().zip(occ).zip(need).enumerate() {
+                if !(o && n) {
                     continue;
                 }
                 let x = texel_point(q, p, t as u32 % p, t as u32 / p);
@@ -123,7 +125,9 @@ pub fn fit_mlp(samples: &[FitSample], s: &FitSettings) -> (MlpWeights, f32) {
             pos += 1;
             let a = net::forward(&w, &net::input(&smp.feat, smp.dir));
             let dy: [f32; 3] = std::array::from_fn(|k| 2.0 * (a.y[k] - smp.target[k]));
-            loss += (0..3).map(|k| (a.y[k] - smp.target[k]).powi(2)).sum::<f32>();
+            loss += (0..3)
+                .map(|k| (a.y[k] - smp.target[k]).powi(2))
+                .sum::<f32>();
             net::backward(&w, &a, dy, &mut g);
         }
         mse = loss / (3 * s.batch) as f32;

@@ -97,7 +97,11 @@ pub struct Activations {
 }
 
 #[inline]
-fn dense<const I: usize, const O: usize>(x: &[f32; I], w: &[[f32; O]; I], b: &[f32; O]) -> [f32; O] {
+fn dense<const I: usize, const O: usize>(
+    x: &[f32; I],
+    w: &[[f32; O]; I],
+    b: &[f32; O],
+) -> [f32; O] {
     // Same order as the core's `dense_f32`.
     let mut acc = *b;
     for (&xi, row) in x.iter().zip(w.iter()) {
@@ -181,7 +185,8 @@ pub fn backward(
 }
 
 /// Number of MLP parameters (11·16 + 16 + 16·16 + 16 + 16·3 + 3 = 515).
-pub const PARAMS: usize = INPUTS * HIDDEN + HIDDEN + HIDDEN * HIDDEN + HIDDEN + HIDDEN * OUTPUTS + OUTPUTS;
+pub const PARAMS: usize =
+    INPUTS * HIDDEN + HIDDEN + HIDDEN * HIDDEN + HIDDEN + HIDDEN * OUTPUTS + OUTPUTS;
 
 /// The parameters as one flat vector (for the optimiser), in a fixed order.
 pub fn flatten(w: &MlpWeights) -> Vec<f32> {
@@ -211,16 +216,15 @@ pub fn unflatten(v: &[f32]) -> MlpWeights {
 
 /// Element-wise `a += b` of two weight sets (gradient reduction).
 pub fn add_into(a: &mut MlpWeights, b: &MlpWeights) {
-    let pairs = a
-        .w0
-        .iter_mut()
-        .flatten()
-        .zip(b.w0.iter().flatten())
-        .chain(a.b0.iter_mut().zip(&b.b0))
-        .chain(a.w1.iter_mut().flatten().zip(b.w1.iter().flatten()))
-        .chain(a.b1.iter_mut().zip(&b.b1))
-        .chain(a.w2.iter_mut().flatten().zip(b.w2.iter().flatten()))
-        .chain(a.b2.iter_mut().zip(&b.b2));
+    let pairs =
+        a.w0.iter_mut()
+            .flatten()
+            .zip(b.w0.iter().flatten())
+            .chain(a.b0.iter_mut().zip(&b.b0))
+            .chain(a.w1.iter_mut().flatten().zip(b.w1.iter().flatten()))
+            .chain(a.b1.iter_mut().zip(&b.b1))
+            .chain(a.w2.iter_mut().flatten().zip(b.w2.iter().flatten()))
+            .chain(a.b2.iter_mut().zip(&b.b2));
     for (x, y) in pairs {
         *x += y;
     }
@@ -309,7 +313,11 @@ mod tests {
                 assert_eq!(encode(c, decode(c, t), occupied), t, "channel {c} byte {t}");
             }
         }
-        assert_eq!(encode(0, 0.0, true), 1, "an occupied texel never encodes as empty");
+        assert_eq!(
+            encode(0, 0.0, true),
+            1,
+            "an occupied texel never encodes as empty"
+        );
     }
 
     #[test]
@@ -319,7 +327,11 @@ mod tests {
             let (f, d) = sample_input(k);
             let (f0, f1) = to_bytes(&f, true);
             let x = input(&quantise(&f), d);
-            assert_eq!(to_u8(forward(&w, &x).y), shade_f32(&w, f0, f1, d), "sample {k}");
+            assert_eq!(
+                to_u8(forward(&w, &x).y),
+                shade_f32(&w, f0, f1, d),
+                "sample {k}"
+            );
         }
     }
 
@@ -329,8 +341,12 @@ mod tests {
     fn backward_matches_finite_differences() {
         let mut w = random_weights(11);
         // Non-zero biases so every unit's gradient path is exercised.
-        w.b0.iter_mut().enumerate().for_each(|(i, b)| *b = 0.05 * (i as f32 - 7.0));
-        w.b1.iter_mut().enumerate().for_each(|(i, b)| *b = 0.03 * (i as f32 - 5.0));
+        w.b0.iter_mut()
+            .enumerate()
+            .for_each(|(i, b)| *b = 0.05 * (i as f32 - 7.0));
+        w.b1.iter_mut()
+            .enumerate()
+            .for_each(|(i, b)| *b = 0.03 * (i as f32 - 5.0));
         let target = [0.2f32, 0.7, 0.4];
         // The same network in f64 over the flat parameters (the order of
         // `flatten`), so central differences with a step small enough never
@@ -344,7 +360,11 @@ mod tests {
                 (0..o)
                     .map(|j| {
                         let v = b[j] + (0..x.len()).map(|i| x[i] * w[i * o + j]).sum::<f64>();
-                        if relu { v.max(0.0) } else { v }
+                        if relu {
+                            v.max(0.0)
+                        } else {
+                            v
+                        }
                     })
                     .collect()
             };
@@ -382,7 +402,11 @@ mod tests {
                 pm[j] -= h;
                 let num = (loss(&pp, &x64) - loss(&pm, &x64)) / (2.0 * h);
                 let err = (num - f64::from(gp[j])).abs();
-                assert!(err < 1e-5 + 1e-3 * num.abs(), "param {j}: {} vs {num}", gp[j]);
+                assert!(
+                    err < 1e-5 + 1e-3 * num.abs(),
+                    "param {j}: {} vs {num}",
+                    gp[j]
+                );
             }
         }
     }
