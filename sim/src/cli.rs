@@ -12,3 +12,4 @@ pub mod run;
 pub mod scene;
 pub mod segment;
 pub mod simulate;
+pub mod train;

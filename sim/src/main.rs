@@ -26,6 +26,8 @@ enum Command {
     Metrics(cli::metrics::Args),
     /// Bake MobileNeRF-format assets from a posed capture.
     Bake(cli::bake::Args),
+    /// Learn one object's radiance field from its posed photos.
+    Train(cli::train::Args),
     /// Profiler: sample points and curve fitting.
     Profile(cli::profile::Args),
     /// Detail-based segmentation of a multi-object capture.
@@ -46,6 +48,7 @@ fn main() -> std::process::ExitCode {
         Command::Scene(a) => cli::scene::run(a),
         Command::Metrics(a) => cli::metrics::run(a),
         Command::Bake(a) => cli::bake::run(a),
+        Command::Train(a) => cli::train::run(a),
         Command::Profile(a) => cli::profile::run(a),
         Command::Segment(a) => cli::segment::run(a),
         Command::Simulate(a) => cli::simulate::run(a),

@@ -1,0 +1,359 @@
+//! The trained field: a sparse voxel grid of density and spherical-harmonic
+//! colour, trilinearly interpolated (Plenoxels' representation).
+//!
+//! Values live on the vertices of an `R`³-cell lattice over a cube. Only the
+//! vertices near the object are stored: `index` maps every lattice vertex to
+//! a slot of `values` (`EMPTY` where nothing is stored, read as all zeros).
+//! A slot holds one record — raw density, then the `K` SH coefficients of
+//! red, green and blue, padded with zeros to 4, 16 or 32 floats (degree 0,
+//! 1, 2) — so a degree-1 record is one 64-byte cache line and the eight
+//! corner gathers of a sample touch eight lines.
+
+use glam::Vec3;
+
+use super::field::RadianceField;
+use super::sh;
+use crate::bake::Aabb;
+
+/// Longest record (SH degree 2, padded).
+pub const MAX_RECORD: usize = 32;
+
+/// Index value of a vertex that stores nothing.
+pub const EMPTY: u32 = u32::MAX;
+
+/// Raw density below which a sample is skipped (σ is then negligible).
+const DENSITY_FLOOR: f32 = 0.0;
+
+/// Shift of the density activation: `σ·edge/256 = softplus(raw − SHIFT)`,
+/// so a fresh vertex at raw 0 is nearly transparent (DVGO's trick, which
+/// keeps gradients alive where ReLU would kill them).
+pub const DENSITY_SHIFT: f32 = 4.0;
+
+/// The sparse grid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SparseGrid {
+    /// Cells per edge (`R`); the lattice has `R + 1` vertices per edge.
+    pub res: u32,
+    /// The cube the grid spans (world units).
+    pub cube: Aabb,
+    /// SH degree (0, 1 or 2): `K = (degree + 1)²` coefficients per channel.
+    pub sh_degree: u32,
+    /// Vertex → slot, `(R + 1)³` entries, x fastest.
+    pub index: Vec<u32>,
+    /// Slot → vertex (linear lattice index), the inverse of `index`.
+    pub vertex: Vec<u32>,
+    /// Records, `slots × record_len()` floats.
+    pub values: Vec<f32>,
+    /// One bit per cell (`R`³): whether any of its corners is stored.
+    pub cell_bits: Vec<u64>,
+}
+
+/// The eight corners of a sample: slots (or `EMPTY`) and trilinear weights.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Corners {
+    /// Slot of each corner, `EMPTY` for a vertex without storage.
+    pub slot: [u32; 8],
+    /// Trilinear weight of each corner (they sum to 1).
+    pub weight: [f32; 8],
+}
+
+impl SparseGrid {
+    /// A grid over `cube` with `res` cells per edge storing the vertices
+    /// for which `keep(i, j, k)` holds, all records zero.
+    pub fn new(res: u32, cube: Aabb, sh_degree: u32, keep: impl Fn(u32, u32, u32) -> bool) -> Self {
+        let n = res + 1;
+        let mut index = vec![EMPTY; (n as usize).pow(3)];
+        let mut vertex = Vec::new();
+        for k in 0..n {
+            for j in 0..n {
+                for i in 0..n {
+                    if keep(i, j, k) {
+                        let v = ((k * n + j) * n + i) as usize;
+                        index[v] = vertex.len() as u32;
+                        vertex.push(v as u32);
+                    }
+                }
+            }
+        }
+        let len = record_len(sh_degree);
+        let mut grid = SparseGrid {
+            res,
+            cube,
+            sh_degree,
+            index,
+            values: vec![0.0; vertex.len() * len],
+            vertex,
+            cell_bits: Vec::new(),
+        };
+        grid.rebuild_cells();
+        grid
+    }
+
+    /// Floats per (padded) record.
+    #[inline]
+    pub fn record_len(&self) -> usize {
+        record_len(self.sh_degree)
+    }
+
+    /// SH coefficients per channel.
+    #[inline]
+    pub fn sh_count(&self) -> usize {
+        sh::count(self.sh_degree)
+    }
+
+    /// Number of stored vertices.
+    pub fn slots(&self) -> usize {
+        self.vertex.len()
+    }
+
+    /// Edge length of a cell, world units.
+    #[inline]
+    pub fn voxel(&self) -> f32 {
+        (self.cube.max.x - self.cube.min.x) / self.res as f32
+    }
+
+    /// σ per world unit for activated raw density 1: `256 / edge`, so
+    /// densities keep their meaning when the grid is refined.
+    #[inline]
+    pub fn density_scale(&self) -> f32 {
+        256.0 / (self.cube.max.x - self.cube.min.x)
+    }
+
+    /// Lattice coordinates (i, j, k) of a linear vertex index.
+    #[inline]
+    pub fn vertex_ijk(&self, v: u32) -> (u32, u32, u32) {
+        let n = self.res + 1;
+        (v % n, (v / n) % n, v / (n * n))
+    }
+
+    /// Recomputes the per-cell occupancy bits from `index`.
+    pub fn rebuild_cells(&mut self) {
+        let r = self.res as usize;
+        let n = r + 1;
+        let mut bits = vec![0u64; (r * r * r).div_ceil(64)];
+        for (&v, _) in self.vertex.iter().zip(0..) {
+            let v = v as usize;
+            let (i, j, k) = (v % n, (v / n) % n, v / (n * n));
+            // The (up to) eight cells this vertex is a corner of.
+            for dk in 0..2 {
+                for dj in 0..2 {
+                    for di in 0..2 {
+                        let (ci, cj, ck) = (i + di, j + dj, k + dk);
+                        if ci == 0 || cj == 0 || ck == 0 || ci > r || cj > r || ck > r {
+                            continue;
+                        }
+                        let c = ((ck - 1) * r + (cj - 1)) * r + (ci - 1);
+                        bits[c / 64] |= 1 << (c % 64);
+                    }
+                }
+            }
+        }
+        self.cell_bits = bits;
+    }
+
+    /// Grid coordinates of a world point (cells; the cube spans [0, R]).
+    #[inline]
+    pub fn to_grid(&self, p: Vec3) -> Vec3 {
+        (p - self.cube.min) * (self.res as f32 / (self.cube.max.x - self.cube.min.x))
+    }
+
+    /// The corners of the sample at grid coordinates `u`, or `None` when
+    /// `u` is outside the grid or its cell stores nothing.
+    #[inline(always)]
+    pub fn corners(&self, u: Vec3) -> Option<Corners> {
+        let r = self.res as f32;
+        if !(u.x >= 0.0 && u.y >= 0.0 && u.z >= 0.0 && u.x <= r && u.y <= r && u.z <= r) {
+            return None;
+        }
+        let rm = self.res - 1;
+        let (i, j, k) = (
+            (u.x as u32).min(rm),
+            (u.y as u32).min(rm),
+            (u.z as u32).min(rm),
+        );
+        let res = self.res as usize;
+        let c = (k as usize * res + j as usize) * res + i as usize;
+        if self
+            .cell_bits
+            .get(c / 64)
+            .is_none_or(|b| b & (1 << (c % 64)) == 0)
+        {
+            return None;
+        }
+        let (fx, fy, fz) = (u.x - i as f32, u.y - j as f32, u.z - k as f32);
+        let n = self.res as usize + 1;
+        let base = (k as usize * n + j as usize) * n + i as usize;
+        let mut out = Corners::default();
+        let offs = [0, 1, n, n + 1, n * n, n * n + 1, n * n + n, n * n + n + 1];
+        let wx = [1.0 - fx, fx];
+        let wy = [1.0 - fy, fy];
+        let wz = [1.0 - fz, fz];
+        for (c, off) in offs.iter().enumerate() {
+            out.slot[c] = self.index.get(base + off).copied().unwrap_or(EMPTY);
+            out.weight[c] = wx[c & 1] * wy[(c >> 1) & 1] * wz[c >> 2];
+        }
+        Some(out)
+    }
+
+    /// The interpolated record at the corners, for a record length known
+    /// at compile time (the hot path).
+    #[inline(always)]
+    pub fn gather<const S: usize>(&self, corners: &Corners) -> [f32; S] {
+        let (recs, _) = self.values.as_chunks::<S>();
+        let mut out = [0.0; S];
+        for c in 0..8 {
+            if let Some(rec) = recs.get(corners.slot[c] as usize) {
+                let w = corners.weight[c];
+                for i in 0..S {
+                    out[i] += w * rec[i];
+                }
+            }
+        }
+        out
+    }
+
+    /// The interpolated record at the corners into `out` (`record_len()`).
+    #[inline]
+    pub fn interpolate(&self, corners: &Corners, out: &mut [f32]) {
+        let len = self.record_len();
+        out.iter_mut().for_each(|o| *o = 0.0);
+        for c in 0..8 {
+            let s = corners.slot[c];
+            if s == EMPTY {
+                continue;
+            }
+            let w = corners.weight[c];
+            let rec = &self.values[s as usize * len..(s as usize + 1) * len];
+            for (o, &v) in out.iter_mut().zip(rec) {
+                *o += w * v;
+            }
+        }
+    }
+}
+
+/// Floats per (padded) record of an SH degree: 4, 16 or 32.
+#[inline]
+pub fn record_len(sh_degree: u32) -> usize {
+    match sh_degree {
+        0 => 4,
+        1 => 16,
+        _ => 32,
+    }
+}
+
+/// The density activation: softplus(raw − SHIFT) and its derivative.
+#[inline]
+pub fn activate_density(raw: f32) -> (f32, f32) {
+    let x = raw - DENSITY_SHIFT;
+    if x > 15.0 {
+        (x, 1.0)
+    } else {
+        let e = x.exp();
+        ((1.0 + e).ln(), e / (1.0 + e))
+    }
+}
+
+/// The logistic function.
+#[inline]
+pub fn sigmoid(x: f32) -> f32 {
+    1.0 / (1.0 + (-x).exp())
+}
+
+impl RadianceField for SparseGrid {
+    fn bounds(&self) -> Aabb {
+        self.cube
+    }
+
+    fn resolution(&self) -> u32 {
+        self.res
+    }
+
+    fn density(&self, p: Vec3) -> f32 {
+        let Some(c) = self.corners(self.to_grid(p)) else {
+            return 0.0;
+        };
+        let mut buf = [0.0; MAX_RECORD];
+        let rec = &mut buf[..self.record_len()];
+        self.interpolate(&c, rec);
+        if rec[0] <= DENSITY_FLOOR {
+            return 0.0;
+        }
+        activate_density(rec[0]).0 * self.density_scale()
+    }
+
+    fn color(&self, p: Vec3, dir: Vec3) -> Vec3 {
+        let Some(c) = self.corners(self.to_grid(p)) else {
+            return Vec3::ZERO;
+        };
+        let mut buf = [0.0; MAX_RECORD];
+        let rec = &mut buf[..self.record_len()];
+        self.interpolate(&c, rec);
+        let mut basis = [0.0; sh::MAX_COUNT];
+        let k = sh::eval(self.sh_degree, dir, &mut basis);
+        let mut rgb = [0.0; 3];
+        for (ch, out) in rgb.iter_mut().enumerate() {
+            let coeffs = &rec[1 + ch * k..1 + (ch + 1) * k];
+            let s: f32 = coeffs.iter().zip(&basis[..k]).map(|(a, b)| a * b).sum();
+            *out = sigmoid(s);
+        }
+        Vec3::from_array(rgb)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit() -> Aabb {
+        Aabb {
+            min: Vec3::ZERO,
+            max: Vec3::ONE,
+        }
+    }
+
+    #[test]
+    fn weights_sum_to_one_and_pick_the_right_cell() {
+        let g = SparseGrid::new(4, unit(), 0, |_, _, _| true);
+        let c = g.corners(Vec3::new(1.25, 2.5, 3.75)).unwrap();
+        let s: f32 = c.weight.iter().sum();
+        assert!((s - 1.0).abs() < 1e-6);
+        // Corner 0 is vertex (1, 2, 3).
+        assert_eq!(g.vertex[c.slot[0] as usize], (3 * 5 + 2) * 5 + 1);
+        assert!((c.weight[7] - 0.25 * 0.5 * 0.75).abs() < 1e-6);
+    }
+
+    #[test]
+    fn interpolation_reproduces_a_linear_function() {
+        let mut g = SparseGrid::new(4, unit(), 0, |_, _, _| true);
+        let len = g.record_len();
+        for s in 0..g.slots() {
+            let (i, j, k) = g.vertex_ijk(g.vertex[s]);
+            g.values[s * len] = i as f32 + 2.0 * j as f32 - k as f32;
+        }
+        let u = Vec3::new(0.3, 3.2, 1.9);
+        let mut rec = vec![0.0; len];
+        g.interpolate(&g.corners(u).unwrap(), &mut rec);
+        assert!((rec[0] - (0.3 + 6.4 - 1.9)).abs() < 1e-5);
+    }
+
+    #[test]
+    fn empty_cells_and_outside_points_have_no_corners() {
+        let g = SparseGrid::new(4, unit(), 1, |i, j, k| i <= 1 && j <= 1 && k <= 1);
+        assert!(g.corners(Vec3::splat(0.5)).is_some());
+        assert!(g.corners(Vec3::splat(2.5)).is_none());
+        assert!(g.corners(Vec3::splat(-0.1)).is_none());
+        assert!(g.corners(Vec3::splat(f32::NAN)).is_none());
+        // A cell touching a stored vertex is active.
+        assert!(g.corners(Vec3::splat(1.5)).is_some());
+    }
+
+    #[test]
+    fn activation_is_smooth_and_matches_its_derivative() {
+        for &x in &[-10.0f32, 0.0, 3.9, 4.0, 8.0, 18.0, 30.0] {
+            let (y, d) = activate_density(x);
+            let h = 1e-2;
+            let fd = (activate_density(x + h).0 - activate_density(x - h).0) / (2.0 * h);
+            assert!(y >= 0.0 && (d - fd).abs() < 1e-3, "x={x} d={d} fd={fd}");
+        }
+    }
+}
