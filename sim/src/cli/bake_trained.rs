@@ -145,10 +145,7 @@ pub fn load_field(
     if !spec.exists() {
         bail!("--field {}: no such file", spec.display());
     }
-    bail!(
-        "--field {}: reading fields saved by `nerflex train` needs `nerflex_sim::train::load_field` (issue 14), which is not on this branch yet",
-        spec.display()
-    )
+    crate::train::load_field(spec).with_context(|| format!("--field {}", spec.display()))
 }
 
 /// Bakes one object with the trained baker and prints its counts.

@@ -130,6 +130,8 @@ pub fn to_u8(y: [f32; OUTPUTS]) -> [u8; 3] {
 /// Backward pass for output gradient `dy` (∂loss/∂y): adds the weight
 /// gradients into `g` and returns ∂loss/∂(the 8 features).
 #[inline]
+// Index loops: each index runs over several arrays at once, as the math reads.
+#[allow(clippy::needless_range_loop)]
 pub fn backward(
     w: &MlpWeights,
     a: &Activations,
