@@ -67,7 +67,7 @@ impl TrainedParams {
         Self {
             grid,
             patch,
-            surface_alpha: 0.5,
+            surface_alpha: 0.05,
             fit_samples: 65_536,
             fit: FitSettings::default(),
             finetune: FinetuneSettings::default(),

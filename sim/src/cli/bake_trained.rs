@@ -35,8 +35,10 @@ pub struct TrainedArgs {
     /// Fine-tune passes over the training pixels.
     #[arg(long, default_value_t = 3.0)]
     pub epochs: f32,
-    /// Opacity over half a field cell at which a point is inside.
-    #[arg(long, default_value_t = 0.5)]
+    /// Opacity over half a field cell at which a point is inside (0.5
+    /// finds almost nothing in a trained field whose surface spreads over
+    /// a few cells; 0.05 keeps lego's surface, see docs/baking.md).
+    #[arg(long, default_value_t = 0.05)]
     pub surface_alpha: f32,
 }
 

@@ -2,8 +2,8 @@
 //! opacity says surface, and binary texel opacity at p×p per quad.
 //!
 //! A point is *inside* when the field's opacity over a step of half a field
-//! cell reaches `surface_alpha` (0.5: the density at which a ray stops
-//! within about a cell, i.e. the surface the field renders). Voxels of the
+//! cell reaches `surface_alpha` (default 0.05: a trained field's surface
+//! spreads over a few cells, so each half cell is only partly opaque). Voxels of the
 //! g³ grid are classified at the 27 points of a half-voxel lattice, as the
 //! hull baker does: all inside → full, none → empty, else *shell* (the
 //! surface crosses it). Every face of every shell voxel is a quad (the
