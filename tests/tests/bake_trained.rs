@@ -163,10 +163,10 @@ fn the_export_round_trips_and_the_renderer_reproduces_the_finetune_shader() {
             }
             let src = v.image.get_pixel(x, y).0;
             let a = f64::from(cov) / 255.0;
-            for k in 0..3 {
-                let t = f64::from(src[k]) * a + 255.0 * (1.0 - a);
+            for (&s, &r) in src.iter().zip(&px.0).take(3) {
+                let t = f64::from(s) * a + 255.0 * (1.0 - a);
                 let t = (t / 255.0) as f32 as f64 * 255.0;
-                se += (f64::from(px.0[k]) - t).powi(2);
+                se += (f64::from(r) - t).powi(2);
                 n += 1;
             }
         }
