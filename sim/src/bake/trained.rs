@@ -272,23 +272,6 @@ pub fn bake(
             })
             .collect()
     };
-    if std::env::var("NERFLEX_DEBUG").is_ok() {
-        let mut se = [0f64; 3];
-        for (smp, px) in samples.iter().zip(pixels.iter().step_by(stride)) {
-            for k in 0..3 {
-                se[0] += f64::from(smp.target[k] - px.target[k]).powi(2);
-                se[1] += f64::from(smp.feat[k] - px.target[k]).powi(2);
-                se[2] += f64::from(smp.feat[k] - smp.target[k]).powi(2);
-            }
-        }
-        let n = 3.0 * samples.len() as f64;
-        eprintln!(
-            "debug psnr: field-vs-image {:.2}, feat-vs-image {:.2}, feat-vs-field {:.2}",
-            -10.0 * (se[0] / n).log10(),
-            -10.0 * (se[1] / n).log10(),
-            -10.0 * (se[2] / n).log10()
-        );
-    }
     let (mut mlp, fit_mse) = init::fit_mlp(&samples, &params.fit);
     drop(samples);
     let t3 = Instant::now();
