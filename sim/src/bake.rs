@@ -27,6 +27,7 @@ pub mod mlp_fit;
 pub mod quads;
 pub mod sweep;
 pub mod texels;
+pub mod trained;
 
 use glam::Vec3;
 use image::{GrayImage, RgbaImage};

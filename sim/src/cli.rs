@@ -2,6 +2,7 @@
 //! that parses flags, calls the library and prints.
 
 pub mod bake;
+pub mod bake_trained;
 pub mod eval;
 pub mod metrics;
 pub mod plan;

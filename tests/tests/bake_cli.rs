@@ -61,6 +61,7 @@ fn args(capture: &Path) -> Args {
             table_configs: vec![(8, 3), (12, 5)],
             ..Reports::default()
         }),
+        trained: Default::default(),
         lpips_weights: Some(PathBuf::from("/nonexistent/lpips.safetensors")),
     }
 }

@@ -115,6 +115,7 @@ fn sweep_reuses_unchanged_results_and_rebakes_changed_ones() {
         cache: Some(Cache::new(dir.path().join("cache"))),
         lpips: None,
         progress: false,
+        trained: None,
     };
     let first = sweep::run(&objects, &opts, &render).unwrap();
     assert_eq!((first.baked, first.reused, first.samples.len()), (8, 0, 8));
@@ -171,6 +172,7 @@ fn sweep_rejects_duplicate_and_unwritable_names() {
         cache: None,
         lpips: None,
         progress: false,
+        trained: None,
     };
     let render = |_: &nerflex_sim::asset::Asset, _: &Camera| Ok(RgbaImage::new(64, 64));
     let e = sweep::run(&[ball("a", 0.5), ball("a", 0.6)], &opts, &render)

@@ -284,6 +284,19 @@ pub struct ShellGrid {
 }
 
 impl ShellGrid {
+    /// A grid from per-voxel classes (x fastest, then y, then z), for
+    /// classifiers other than the hull's (e.g. a radiance field's opacity);
+    /// `None` if `class` does not hold `g`³ entries.
+    pub fn from_classes(g: u32, origin: Vec3, voxel: f32, class: Vec<VoxelClass>) -> Option<Self> {
+        let n = (g as usize).checked_pow(3)?;
+        (class.len() == n).then_some(Self {
+            g,
+            origin,
+            voxel,
+            class,
+        })
+    }
+
     /// The class of voxel (i, j, k); outside the grid is empty.
     #[inline]
     pub fn class(&self, i: i64, j: i64, k: i64) -> VoxelClass {

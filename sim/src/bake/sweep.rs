@@ -427,14 +427,47 @@ pub fn bake_and_measure(
         )
     })?;
     drop(views);
+    measure_baked(obj, baked, render, lpips)
+}
+
+/// Bakes one object from its radiance field with the trained baker
+/// (`bake::trained`) at `params`' (g, p) and measures it.
+pub fn bake_and_measure_trained(
+    obj: &ObjectViews,
+    field: &dyn crate::train::field::RadianceField,
+    params: &super::trained::TrainedParams,
+    render: &RenderFn<'_>,
+    lpips: Option<&Lpips>,
+) -> anyhow::Result<Sample> {
+    let views = obj.bake_views();
+    let baked = super::trained::bake(field, &views, params)
+        .with_context(|| {
+            format!(
+                "baking {} from its field at g={} p={}",
+                obj.name, params.grid, params.patch
+            )
+        })?
+        .baked;
+    drop(views);
+    measure_baked(obj, baked, render, lpips)
+}
+
+/// Sizes and held-out quality of a baked object.
+fn measure_baked(
+    obj: &ObjectViews,
+    baked: super::BakedObject,
+    render: &RenderFn<'_>,
+    lpips: Option<&Lpips>,
+) -> anyhow::Result<Sample> {
+    let (g, p) = (baked.params.grid, baked.params.patch);
     let (quads, gpu_bytes) = (baked.quads.len() as u64, baked.gpu_bytes());
     let asset = baked.into_asset()?;
     let size_bytes = super::file_bytes(&asset)?;
     let (q, _) = measure(&asset, &obj.test, render, lpips, false)?;
     Ok(Sample {
         object: obj.name.clone(),
-        g: params.grid,
-        p: params.patch,
+        g,
+        p,
         size_bytes,
         gpu_bytes,
         quads,
@@ -531,6 +564,19 @@ pub struct SweepOptions<'a> {
     pub lpips: Option<&'a Lpips>,
     /// Show a progress bar.
     pub progress: bool,
+    /// Bake from radiance fields instead of the hull (`None`: hull).
+    pub trained: Option<TrainedSweep<'a>>,
+}
+
+/// The trained baker's part of a sweep.
+pub struct TrainedSweep<'a> {
+    /// One field per object, in the order of the objects.
+    pub fields: Vec<&'a dyn crate::train::field::RadianceField>,
+    /// What identifies each field's content (e.g. its file's hash), for the
+    /// cache keys.
+    pub field_ids: Vec<String>,
+    /// Settings other than g and p.
+    pub params: super::trained::TrainedParams,
 }
 
 /// What a sweep did.
@@ -567,7 +613,23 @@ pub fn run(
                 let mut params = opts.base.clone();
                 params.grid = g;
                 params.patch = p;
-                let key = Cache::key(obj, &params, opts.lpips.is_some());
+                let mut key = Cache::key(obj, &params, opts.lpips.is_some());
+                if let Some(t) = &opts.trained {
+                    let Some(id) = t.field_ids.get(oi) else {
+                        bail!("no field for object `{}`", obj.name);
+                    };
+                    let mut h = Fnv64::default();
+                    h.write(key.as_bytes());
+                    h.write(
+                        format!(
+                            "trained v{} {id} {:?}",
+                            super::trained::TRAINED_BAKER_VERSION,
+                            t.params
+                        )
+                        .as_bytes(),
+                    );
+                    key = format!("{}-g{g}-p{p}-t{:016x}", obj.name, h.finish());
+                }
                 match opts.cache.as_ref().and_then(|c| c.get(&key)) {
                     Some(s) => {
                         reused += 1;
@@ -604,7 +666,19 @@ pub fn run(
                 let Some((oi, params, key)) = next else { break };
                 let obj = &objects[oi];
                 bar.set_message(format!("{} g={} p={}", obj.name, params.grid, params.patch));
-                let r = bake_and_measure(obj, &params, render, opts.lpips).and_then(|sample| {
+                let r = match &opts.trained {
+                    Some(t) => {
+                        let mut tp = t.params.clone();
+                        tp.grid = params.grid;
+                        tp.patch = params.patch;
+                        match t.fields.get(oi) {
+                            Some(f) => bake_and_measure_trained(obj, *f, &tp, render, opts.lpips),
+                            None => Err(anyhow::anyhow!("no field for object `{}`", obj.name)),
+                        }
+                    }
+                    None => bake_and_measure(obj, &params, render, opts.lpips),
+                }
+                .and_then(|sample| {
                     if let Some(c) = &opts.cache {
                         c.put(&key, &sample)?;
                     }

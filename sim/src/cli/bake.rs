@@ -91,6 +91,9 @@ pub struct Args {
     /// Comparison pictures and tables (boxed: keeps the CLI's enum small).
     #[command(flatten)]
     pub reports: Box<Reports>,
+    /// The trained baker's flags (`--baker`, `--field`, …).
+    #[command(flatten)]
+    pub trained: Box<super::bake_trained::TrainedArgs>,
     /// LPIPS weights (default: `lpips/` in the shared data folder; LPIPS is
     /// left out if absent).
     #[arg(long)]
@@ -199,6 +202,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.sweep {
         return run_sweep(&args);
     }
+    if args.reports.compare.is_some()
+        && args.trained.baker()? == super::bake_trained::Baker::Trained
+    {
+        bail!("--compare bakes with the hull baker only; drop --field/--baker trained");
+    }
     if !args.configs.is_empty() && args.reports.compare.is_none() {
         bail!("--configs needs --sweep or --compare");
     }
@@ -235,7 +243,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     params.search_box = obj.search_box;
     let t1 = Instant::now();
     let views = obj.bake_views();
-    let baked = bake::bake(&views, &params)?;
+    let baked = match args.trained.baker()? {
+        super::bake_trained::Baker::Hull => bake::bake(&views, &params)?,
+        super::bake_trained::Baker::Trained => super::bake_trained::bake(
+            &args.trained,
+            &args.capture[0],
+            args.object.first().map(String::as_str),
+            &views,
+            g,
+            p,
+        )?,
+    };
     let t_bake = t1.elapsed().as_secs_f64();
     let s = baked.stats;
     let (quads, pages, gpu_bytes) = (
@@ -443,6 +461,38 @@ fn run_sweep(args: &Args) -> anyhow::Result<()> {
         cache: (!args.no_cache).then(|| Cache::new(&cache_dir)),
         lpips: net.as_ref(),
         progress: true,
+        trained: None,
+    };
+    // The trained baker: one field per object, in load_objects' order.
+    let fields = match (args.trained.baker()?, &args.trained.field) {
+        (super::bake_trained::Baker::Trained, Some(spec)) => {
+            let mut v = Vec::new();
+            let mut oi = 0;
+            for dir in &args.capture {
+                let names: Vec<Option<&str>> = if args.object.is_empty() {
+                    vec![None]
+                } else {
+                    args.object.iter().map(|n| Some(n.as_str())).collect()
+                };
+                for name in names {
+                    let obj_name = name.unwrap_or(objects[oi].name.as_str());
+                    v.push(super::bake_trained::load_field_with_id(
+                        spec, dir, obj_name,
+                    )?);
+                    oi += 1;
+                }
+            }
+            Some(v)
+        }
+        _ => None,
+    };
+    let opts = SweepOptions {
+        trained: fields.as_ref().map(|v| sweep::TrainedSweep {
+            fields: v.iter().map(|(f, _)| f.as_ref()).collect(),
+            field_ids: v.iter().map(|(_, id)| id.clone()).collect(),
+            params: args.trained.params(0, 0),
+        }),
+        ..opts
     };
     let t0 = Instant::now();
     let report = sweep::run(&objects, &opts, &sweep::fixed_point_render)?;

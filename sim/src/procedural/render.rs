@@ -147,6 +147,22 @@ impl SceneRenderer {
         }
     }
 
+    /// Display colour (each channel in [0, 1]) of object `obj`'s surface at
+    /// world point `world` seen along unit direction `dir` (camera → point),
+    /// shaded as [`Self::render`] shades a hit there (`world` should lie on
+    /// the surface). For analytic stand-ins of trained radiance fields.
+    pub fn surface_colour(&self, obj: usize, world: Vec3, dir: Vec3, opts: &RenderOptions) -> Vec3 {
+        let Some(ob) = self.objects.get(obj) else {
+            return Vec3::ZERO;
+        };
+        let hit = Hit {
+            obj,
+            p: ob.placement.to_local(world),
+            eps: 1e-3,
+        };
+        display(self.shade(&hit, dir, opts, None).0)
+    }
+
     /// Renders the view of `camera` at its intrinsics' size. Rows are
     /// rendered in parallel (rayon).
     pub fn render(&self, camera: &Camera, opts: &RenderOptions) -> RenderedView {

@@ -1,0 +1,239 @@
+//! Fine-tuning texel features and the MLP against the training images
+//! through the renderer's deferred shading, as MobileNeRF's last stage does.
+//!
+//! Every training pixel the geometry covers shows one texel (the G-buffer,
+//! [`super::gbuffer`]); its colour is the MLP of that texel's features,
+//! quantised to 8 bits as the atlas stores them (straight-through: the
+//! gradient passes the rounding unchanged), and the pixel's direction. The
+//! loss is the mean squared error against the image composited over white.
+//! Adam updates the MLP every batch and each texel's features whenever the
+//! batch holds one of its pixels (per-texel step counts for the bias
+//! correction, so rarely seen texels are not under-corrected). Batches are
+//! split over the cores with rayon.
+
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use std::time::Instant;
+
+use super::net::{self, Adam, FEATURES};
+use nerflex_core::shader::MlpWeights;
+
+/// A training pixel: the trained-feature slot it shows, its direction and
+/// its target colour.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrainPixel {
+    /// Index into the feature slots.
+    pub slot: u32,
+    /// View direction the renderer feeds the MLP here.
+    pub dir: [f32; 3],
+    /// Target colour in [0, 1].
+    pub target: [f32; 3],
+}
+
+/// Settings of the fine-tune.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FinetuneSettings {
+    /// Passes over the training pixels (fractions allowed).
+    pub epochs: f32,
+    /// Pixels per Adam step.
+    pub batch: usize,
+    /// Learning rate of the texel features (decays ×0.1 over the run).
+    pub lr_features: f32,
+    /// Learning rate of the MLP (decays ×0.1 over the run).
+    pub lr_mlp: f32,
+    /// Seed of the pixel order.
+    pub seed: u64,
+}
+
+impl Default for FinetuneSettings {
+    fn default() -> Self {
+        Self {
+            epochs: 3.0,
+            batch: 8192,
+            lr_features: 0.03,
+            lr_mlp: 3e-3,
+            seed: 7,
+        }
+    }
+}
+
+/// What the fine-tune did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FinetuneReport {
+    /// Adam steps taken.
+    pub steps: usize,
+    /// Pixel evaluations (forward + backward).
+    pub pixel_steps: u64,
+    /// PSNR (dB) of the quantised model on the training pixels before.
+    pub psnr_before: f64,
+    /// … and after.
+    pub psnr_after: f64,
+    /// Wall time, seconds.
+    pub seconds: f64,
+}
+
+/// PSNR (dB) of the 8-bit output of the `f32` shader over the training
+/// pixels (every `stride`-th), as the renderer would show them.
+pub fn train_psnr(
+    pixels: &[TrainPixel],
+    features: &[[f32; FEATURES]],
+    mlp: &MlpWeights,
+    stride: usize,
+) -> f64 {
+    let (se, n) = pixels
+        .par_iter()
+        .step_by(stride.max(1))
+        .map(|px| {
+            let x = net::input(&net::quantise(&features[px.slot as usize]), px.dir);
+            let y = net::to_u8(net::forward(mlp, &x).y);
+            let se: f64 = (0..3)
+                .map(|k| (f64::from(y[k]) - f64::from(px.target[k]) * 255.0).powi(2))
+                .sum();
+            (se, 3u64)
+        })
+        .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    if n == 0 {
+        return f64::INFINITY;
+    }
+    let mse = se / n as f64;
+    10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10()
+}
+
+/// Per-slot Adam state of the features.
+struct FeatureAdam {
+    m: Vec<[f32; FEATURES]>,
+    v: Vec<[f32; FEATURES]>,
+    t: Vec<u32>,
+}
+
+/// Gradient of a batch: MLP and (slot, feature gradient) pairs.
+struct BatchGrad {
+    mlp: MlpWeights,
+    feats: Vec<(u32, [f32; FEATURES])>,
+}
+
+fn batch_grad(
+    batch: &[u32],
+    pixels: &[TrainPixel],
+    features: &[[f32; FEATURES]],
+    mlp: &MlpWeights,
+) -> BatchGrad {
+    let scale = 2.0 / (3 * batch.len()) as f32;
+    batch
+        .par_chunks(512)
+        .map(|chunk| {
+            let mut g = BatchGrad {
+                mlp: MlpWeights::ZERO,
+                feats: Vec::with_capacity(chunk.len()),
+            };
+            for &i in chunk {
+                let px = &pixels[i as usize];
+                let x = net::input(&net::quantise(&features[px.slot as usize]), px.dir);
+                let a = net::forward(mlp, &x);
+                let dy = std::array::from_fn(|k| scale * (a.y[k] - px.target[k]));
+                let df = net::backward(mlp, &a, dy, &mut g.mlp);
+                g.feats.push((px.slot, df));
+            }
+            g
+        })
+        .reduce(
+            || BatchGrad {
+                mlp: MlpWeights::ZERO,
+                feats: Vec::new(),
+            },
+            |mut a, b| {
+                net::add_into(&mut a.mlp, &b.mlp);
+                a.feats.extend(b.feats);
+                a
+            },
+        )
+}
+
+/// Fine-tunes `features` (one per slot) and `mlp` on `pixels`.
+pub fn finetune(
+    pixels: &[TrainPixel],
+    features: &mut [[f32; FEATURES]],
+    mlp: &mut MlpWeights,
+    s: &FinetuneSettings,
+) -> FinetuneReport {
+    let t0 = Instant::now();
+    let stride = (pixels.len() / 1_000_000).max(1);
+    let psnr_before = train_psnr(pixels, features, mlp, stride);
+    let n = pixels.len();
+    let batch = s.batch.max(1);
+    let total = (s.epochs.max(0.0) as f64 * n as f64).round() as u64;
+    let steps = total.div_ceil(batch as u64) as usize;
+    let mut rng = ChaCha8Rng::seed_from_u64(s.seed);
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    let mut pos = n;
+    let mut params = net::flatten(mlp);
+    let mut adam = Adam::new(params.len());
+    let slots = features.len();
+    let mut st = FeatureAdam {
+        m: vec![[0.0; FEATURES]; slots],
+        v: vec![[0.0; FEATURES]; slots],
+        t: vec![0; slots],
+    };
+    let mut grad = vec![[0f32; FEATURES]; slots];
+    // The step (+1) in which each slot was last touched.
+    let mut stamp = vec![0u32; slots];
+    let mut touched: Vec<u32> = Vec::with_capacity(batch);
+    let mut idx: Vec<u32> = Vec::with_capacity(batch);
+    let mut pixel_steps = 0u64;
+    for step in 0..steps {
+        idx.clear();
+        while idx.len() < batch && n > 0 {
+            if pos == n {
+                order.shuffle(&mut rng);
+                pos = 0;
+            }
+            let take = (batch - idx.len()).min(n - pos);
+            idx.extend_from_slice(&order[pos..pos + take]);
+            pos += take;
+        }
+        pixel_steps += idx.len() as u64;
+        let g = batch_grad(&idx, pixels, features, mlp);
+        let decay = 0.1f32.powf(step as f32 / steps.max(1) as f32);
+        // MLP.
+        adam.step(&mut params, &net::flatten(&g.mlp), s.lr_mlp * decay);
+        *mlp = net::unflatten(&params);
+        // Features: sum per slot, then one Adam step per touched slot.
+        touched.clear();
+        for (slot, df) in &g.feats {
+            let gs = &mut grad[*slot as usize];
+            if stamp[*slot as usize] != step as u32 + 1 {
+                stamp[*slot as usize] = step as u32 + 1;
+                touched.push(*slot);
+            }
+            for c in 0..FEATURES {
+                gs[c] += df[c];
+            }
+        }
+        let lr = s.lr_features * decay;
+        for &slot in &touched {
+            let k = slot as usize;
+            let gk = std::mem::replace(&mut grad[k], [0.0; FEATURES]);
+            st.t[k] += 1;
+            let t = st.t[k].min(10_000) as i32;
+            let c1 = 1.0 - net::BETA1.powi(t);
+            let c2 = 1.0 - net::BETA2.powi(t);
+            let (m, v, f) = (&mut st.m[k], &mut st.v[k], &mut features[k]);
+            for c in 0..FEATURES {
+                m[c] = net::BETA1 * m[c] + (1.0 - net::BETA1) * gk[c];
+                v[c] = net::BETA2 * v[c] + (1.0 - net::BETA2) * gk[c] * gk[c];
+                f[c] -= lr * (m[c] / c1) / ((v[c] / c2).sqrt() + net::EPS);
+            }
+            net::clamp(f);
+        }
+    }
+    let psnr_after = train_psnr(pixels, features, mlp, stride);
+    FinetuneReport {
+        steps,
+        pixel_steps,
+        psnr_before,
+        psnr_after,
+        seconds: t0.elapsed().as_secs_f64(),
+    }
+}

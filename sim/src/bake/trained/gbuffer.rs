@@ -1,0 +1,144 @@
+//! Each training view rasterized once into a G-buffer of (quad, texel)
+//! ids, by the phone renderer's own tile rasterizer
+//! (`nerflex_core::raster::TileRenderer`): geometry and texel opacity are
+//! fixed during the fine-tune, so which texel a pixel shows never changes,
+//! and it is exactly the texel `nerflex render` will show there.
+
+use rayon::prelude::*;
+
+use super::super::atlas::AtlasLayout;
+use super::super::{BakeError, BakeView};
+use crate::asset::Asset;
+use crate::render::view_of;
+use nerflex_core::raster::{Part, ScreenQuad, TileRenderer};
+
+/// Tile side of the G-buffer pass (as the host renderer's).
+const TILE: usize = 32;
+
+/// One covered pixel of a training view.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GPixel {
+    /// The texel it shows: `quad · p² + y · p + x` (re-indexed to a
+    /// trained-feature slot by the caller).
+    pub texel: u32,
+    /// The `f32` view direction the renderer feeds the MLP at this pixel.
+    pub dir: [f32; 3],
+    /// The training image here composited over white, in [0, 1].
+    pub target: [f32; 3],
+}
+
+/// The G-buffers of every training view.
+#[derive(Debug, Clone, Default)]
+pub struct GBuffers {
+    /// Covered pixels of all views, view after view.
+    pub pixels: Vec<GPixel>,
+    /// Covered pixels per view.
+    pub per_view: Vec<usize>,
+}
+
+/// Rasterizes every view of `asset` (quads in atlas order, `layout` the
+/// atlas they were laid out with; only feat0.R = 0 matters: empty texels).
+pub fn rasterize(
+    asset: &Asset,
+    layout: &AtlasLayout,
+    views: &[BakeView<'_>],
+) -> Result<GBuffers, BakeError> {
+    let parts: Vec<Part<'_>> = asset
+        .shapes
+        .iter()
+        .map(|s| Part {
+            quads: &s.quads,
+            atlas: s.atlas.atlas(),
+            mlp: asset.mlp.fixed(),
+        })
+        .collect();
+    let p = layout.patch;
+    let per: Vec<Result<Vec<GPixel>, BakeError>> = views
+        .par_iter()
+        .enumerate()
+        .map(|(vi, v)| {
+            let view =
+                view_of(&v.camera).map_err(|e| BakeError::BadViews(format!("view {vi}: {e:?}")))?;
+            let mut id = 0u32;
+            let mut projected = Vec::new();
+            for (pi, part) in parts.iter().enumerate() {
+                for q in part.quads {
+                    if let Some(sq) = ScreenQuad::project(&view, q, pi as u16, id) {
+                        projected.push(sq);
+                    }
+                    id += 1;
+                }
+            }
+            let t = TILE as u32;
+            let (tx, ty) = (view.width().div_ceil(t), view.height().div_ceil(t));
+            let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tx * ty) as usize];
+            for (i, sq) in projected.iter().enumerate() {
+                let [x0, y0, x1, y1] = sq.bbox;
+                for by in y0 / t..=y1 / t {
+                    for bx in x0 / t..=x1 / t {
+                        bins[(by * tx + bx) as usize].push(i as u32);
+                    }
+                }
+            }
+            let mut tile = Box::new(TileRenderer::<TILE, TILE>::new());
+            let mut out = Vec::new();
+            for (b, bin) in bins.iter().enumerate() {
+                if bin.is_empty() {
+                    continue;
+                }
+                let (bx, by) = (b as u32 % tx, b as u32 / tx);
+                tile.begin(&view, bx * t, by * t);
+                for &i in bin {
+                    let sq = &projected[i as usize];
+                    if let Some(part) = parts.get(sq.part as usize) {
+                        tile.draw(sq, &part.atlas);
+                    }
+                }
+                tile.for_each_sample(|x, y, s| {
+                    let Some(s) = s else { return };
+                    let Some(cell) = layout.cell(s.quad as usize) else {
+                        return;
+                    };
+                    let (lx, ly) = (
+                        u32::from(s.texel[0]).wrapping_sub(cell.x),
+                        u32::from(s.texel[1]).wrapping_sub(cell.y),
+                    );
+                    if lx >= p || ly >= p {
+                        return;
+                    }
+                    // Pixels another object covers say nothing about this one.
+                    if let super::super::Silhouette::Instance { mask, label } = v.silhouette {
+                        let m = mask.get_pixel(x, y).0[0];
+                        if m != 0 && m != label {
+                            return;
+                        }
+                    }
+                    // Where the image shows (mostly) background the geometry
+                    // is off by a texel at most: a white target there would
+                    // only teach a surface texel to be white (geometry is
+                    // fixed), so such pixels give no target.
+                    let cov = v.coverage(x, y);
+                    if cov < 128 {
+                        return;
+                    }
+                    let px = v.image.get_pixel(x, y).0;
+                    let a = f32::from(cov) / 255.0;
+                    let c = |k: usize| f32::from(px[k]) / 255.0 * a + (1.0 - a);
+                    out.push(GPixel {
+                        texel: s.quad * p * p + ly * p + lx,
+                        dir: view.pixel_dir_f32(x, y),
+                        target: [c(0), c(1), c(2)],
+                    });
+                });
+            }
+            Ok(out)
+        })
+        .collect();
+    let mut g = GBuffers::default();
+    for r in per {
+        let px = r?;
+        g.per_view.push(px.len());
+        g.pixels.extend(px);
+    }
+    Ok(g)
+}

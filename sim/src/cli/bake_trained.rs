@@ -1,0 +1,187 @@
+//! The `nerflex bake` flags of the trained baker (`--baker`, `--field`,
+//! `--epochs`, `--surface-alpha`) and loading the field they name.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context as _};
+
+use crate::bake::trained::{self, analytic::Builtin, TrainedParams};
+use crate::bake::{BakeView, BakedObject};
+use crate::capture::SceneInfo;
+use crate::train::field::RadianceField;
+
+/// Which baker makes the export.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Baker {
+    /// From a radiance field, fine-tuned on the capture (`bake::trained`).
+    Trained,
+    /// From the capture's silhouettes and colours (visual hull).
+    Hull,
+}
+
+/// Flags of the trained baker.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct TrainedArgs {
+    /// Baker: `trained` (from `--field`, fine-tuned on the capture) or
+    /// `hull` (visual hull, no field). Default: trained when `--field` is
+    /// given, else hull.
+    #[arg(long, value_parser = parse_baker)]
+    pub baker: Option<Baker>,
+    /// The radiance field to bake from: a file saved by `nerflex train`, or
+    /// `builtin` for the analytic field of a built-in capture's object
+    /// (from its `scene.json`; a stand-in with known geometry).
+    #[arg(long)]
+    pub field: Option<PathBuf>,
+    /// Fine-tune passes over the training pixels.
+    #[arg(long, default_value_t = 3.0)]
+    pub epochs: f32,
+    /// Opacity over half a field cell at which a point is inside (0.5
+    /// finds almost nothing in a trained field whose surface spreads over
+    /// a few cells; 0.05 keeps lego's surface, see docs/baking.md).
+    #[arg(long, default_value_t = 0.05)]
+    pub surface_alpha: f32,
+}
+
+fn parse_baker(s: &str) -> Result<Baker, String> {
+    match s {
+        "trained" => Ok(Baker::Trained),
+        "hull" => Ok(Baker::Hull),
+        _ => Err(format!("`{s}` is not a baker (trained, hull)")),
+    }
+}
+
+impl TrainedArgs {
+    /// The baker the flags choose.
+    pub fn baker(&self) -> anyhow::Result<Baker> {
+        match (self.baker, &self.field) {
+            (Some(Baker::Trained), None) => bail!(
+                "--baker trained needs --field FILE (a field saved by `nerflex train`, or `builtin` on a built-in capture)"
+            ),
+            (Some(Baker::Hull), Some(f)) => bail!(
+                "--field {} is only read by --baker trained",
+                f.display()
+            ),
+            (Some(b), _) => Ok(b),
+            (None, Some(_)) => Ok(Baker::Trained),
+            (None, None) => Ok(Baker::Hull),
+        }
+    }
+
+    /// Parameters of a trained bake at (g, p).
+    pub fn params(&self, grid: u32, patch: u32) -> TrainedParams {
+        let mut p = TrainedParams::new(grid, patch);
+        p.finetune.epochs = self.epochs;
+        p.surface_alpha = self.surface_alpha;
+        p
+    }
+}
+
+/// The field `spec` names for `object` of the capture in `capture` and a
+/// string identifying its content (for sweep cache keys). A folder `spec`
+/// holds one field per object: `{spec}/{object}.safetensors`.
+pub fn load_field_with_id(
+    spec: &Path,
+    capture: &Path,
+    object: &str,
+) -> anyhow::Result<(Box<dyn RadianceField>, String)> {
+    if spec.as_os_str() == "builtin" {
+        let scene = capture.join("scene.json");
+        let id = format!(
+            "builtin {:016x}",
+            crate::bake::sweep::hash_files(std::slice::from_ref(&scene))?
+        );
+        let name = SceneInfo::read(&scene)
+            .ok()
+            .and_then(|s| (s.objects.len() > 1).then(|| object.to_string()));
+        return Ok((load_field(spec, capture, name.as_deref())?, id));
+    }
+    let file = if spec.is_dir() {
+        spec.join(format!("{object}.safetensors"))
+    } else {
+        spec.to_path_buf()
+    };
+    let id = format!(
+        "{} {:016x}",
+        file.display(),
+        crate::bake::sweep::hash_files(std::slice::from_ref(&file))
+            .with_context(|| format!("--field: cannot read {}", file.display()))?
+    );
+    Ok((load_field(&file, capture, Some(object))?, id))
+}
+
+/// Loads the field `spec` names for `object` of the capture in `capture`.
+pub fn load_field(
+    spec: &Path,
+    capture: &Path,
+    object: Option<&str>,
+) -> anyhow::Result<Box<dyn RadianceField>> {
+    if spec.as_os_str() == "builtin" {
+        let path = capture.join("scene.json");
+        let scene = SceneInfo::read(&path).with_context(|| {
+            format!(
+                "--field builtin needs a built-in capture with scene.json: {}",
+                path.display()
+            )
+        })?;
+        let info = match object {
+            Some(name) => scene
+                .object(name)
+                .with_context(|| format!("{}: no object `{name}`", path.display()))?,
+            None => match scene.objects.as_slice() {
+                [one] => one,
+                _ => bail!(
+                    "{}: several objects; pick one with --object",
+                    path.display()
+                ),
+            },
+        };
+        let field = Builtin::from_info(info).with_context(|| {
+            format!(
+                "{}: `{}` is not a built-in object kind",
+                path.display(),
+                info.kind
+            )
+        })?;
+        return Ok(Box::new(field));
+    }
+    if !spec.exists() {
+        bail!("--field {}: no such file", spec.display());
+    }
+    crate::train::load_field(spec).with_context(|| format!("--field {}", spec.display()))
+}
+
+/// Bakes one object with the trained baker and prints its counts.
+pub fn bake(
+    args: &TrainedArgs,
+    capture: &Path,
+    object: Option<&str>,
+    views: &[BakeView<'_>],
+    grid: u32,
+    patch: u32,
+) -> anyhow::Result<BakedObject> {
+    let spec = args
+        .field
+        .as_deref()
+        .context("--baker trained needs --field")?;
+    let field = load_field(spec, capture, object)?;
+    let tb = trained::bake(field.as_ref(), views, &args.params(grid, patch))?;
+    let s = &tb.stats;
+    let t = &s.times;
+    println!(
+        "trained: {} shell + {} full voxels, {} quads extracted, {} kept (seen by a training pixel)",
+        s.shell_voxels, s.full_voxels, s.extracted_quads, s.kept_quads
+    );
+    println!(
+        "trained: {} opaque texels, {} fine-tuned, {} filled from a fine-tuned neighbour; {} training pixels; MLP fit to the field: MSE {:.5}",
+        s.opaque_texels, s.trained_texels, s.filled_texels, s.train_pixels, s.fit_mse
+    );
+    println!(
+        "trained: fine-tune {} steps, {} pixel steps, training PSNR {:.2} → {:.2} dB",
+        s.finetune.steps, s.finetune.pixel_steps, s.finetune.psnr_before, s.finetune.psnr_after
+    );
+    println!(
+        "trained: time extract {:.2} s, G-buffers {:.2} s, init {:.2} s, fine-tune {:.2} s, atlas {:.2} s",
+        t.extract_s, t.gbuffer_s, t.init_s, t.finetune_s, t.atlas_s
+    );
+    Ok(tb.baked)
+}

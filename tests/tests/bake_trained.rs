@@ -1,0 +1,181 @@
+//! The trained baker (`bake::trained`) on built-in objects whose analytic
+//! fields stand in for trained ones (`bake::trained::analytic::Builtin`:
+//! the object's SDF as density, the built-in renderer's shading as
+//! colour): its export round-trips through the loader, the phone renderer
+//! reproduces the fine-tune's shader, and on a lattice it beats the hull
+//! baker's held-out SSIM by a stated margin (PSNR: holds it, see
+//! `docs/baking.md`).
+
+use std::path::{Path, PathBuf};
+
+use image::RgbaImage;
+use nerflex_sim::asset::Asset;
+use nerflex_sim::bake::sweep::{self, ObjectViews};
+use nerflex_sim::bake::trained::{self, analytic::Builtin, export, TrainedParams};
+use nerflex_sim::bake::{self, BakeParams};
+use nerflex_sim::capture::Capture;
+use nerflex_sim::procedural::{
+    arrange, make_capture, CaptureSpec, Layout, ObjectKind, RenderOptions,
+};
+use nerflex_sim::render::{render, RenderOptions as DrawOptions};
+
+fn capture(dir: &Path, kind: ObjectKind, size: u32, train_views: usize) -> PathBuf {
+    let spec = CaptureSpec {
+        objects: arrange(&[kind], Layout::Row, 1, 1.0),
+        layout: "row".into(),
+        preset: None,
+        seed: 3,
+        train_views,
+        test_views: 4,
+        size,
+        render: RenderOptions {
+            edge_samples: 2,
+            texture_samples: 0,
+            ..RenderOptions::default()
+        },
+    };
+    let out = dir.join(kind.name());
+    make_capture(&spec, &out, &|| {}).unwrap();
+    out
+}
+
+fn field_of(cap: &Capture) -> Builtin {
+    let scene = cap
+        .scene
+        .as_ref()
+        .expect("built-in captures have scene.json");
+    Builtin::from_info(&scene.objects[0]).expect("a built-in kind")
+}
+
+/// Intersection over union of drawn pixels (alpha > 0) and the truth's
+/// object pixels (alpha ≥ 128), summed over the views.
+fn coverage_iou(renders: &[RgbaImage], truth: &[(nerflex_sim::camera::Camera, RgbaImage)]) -> f64 {
+    let (mut inter, mut union) = (0u64, 0u64);
+    for (r, (_, t)) in renders.iter().zip(truth) {
+        for (a, b) in r.pixels().zip(t.pixels()) {
+            let (x, y) = (a.0[3] > 0, b.0[3] >= 128);
+            inter += u64::from(x && y);
+            union += u64::from(x || y);
+        }
+    }
+    inter as f64 / union.max(1) as f64
+}
+
+#[test]
+fn on_a_lattice_the_trained_baker_beats_the_hull_bakers_ssim() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = capture(tmp.path(), ObjectKind::Lattice, 96, 48);
+    let cap = Capture::load(&dir).unwrap();
+    let obj = ObjectViews::from_capture(&cap, None).unwrap();
+    let views = obj.bake_views();
+    let (g, p) = (48, 3);
+    let mut hp = BakeParams::new(g, p);
+    hp.search_box = obj.search_box;
+    let hull = bake::bake(&views, &hp).unwrap().into_asset().unwrap();
+    let mut tp = TrainedParams::new(g, p);
+    tp.finetune.epochs = 20.0;
+    tp.finetune.batch = 2048;
+    let tb = trained::bake(&field_of(&cap), &views, &tp).unwrap();
+    eprintln!("{:?}", tb.stats);
+    let ours = tb.baked.into_asset().unwrap();
+    let measure = |a: &Asset| {
+        sweep::measure_views(a, &obj.test, &sweep::fixed_point_render, None, true).unwrap()
+    };
+    let (mh, mt) = (measure(&hull), measure(&ours));
+    let (ih, it) = (
+        coverage_iou(&mh.renders, &obj.test),
+        coverage_iou(&mt.renders, &obj.test),
+    );
+    eprintln!(
+        "held-out: hull PSNR {:.2} dB, SSIM {:.4}, coverage IoU {ih:.4}; trained PSNR {:.2} dB, SSIM {:.4}, coverage IoU {it:.4}",
+        mh.mean.psnr, mh.mean.ssim, mt.mean.psnr, mt.mean.ssim
+    );
+    // The field's geometry and fine-tuned appearance: SSIM 0.8285 vs
+    // 0.7758 when this test was written; the margin asked is 0.03.
+    assert!(
+        mt.mean.ssim >= mh.mean.ssim + 0.03,
+        "SSIM: trained {:.4} vs hull {:.4}",
+        mt.mean.ssim,
+        mh.mean.ssim
+    );
+    // Neither baker loses coverage (IoU 0.93 both when written).
+    assert!(
+        it >= ih - 0.01,
+        "coverage IoU: trained {it:.4} vs hull {ih:.4}"
+    );
+    // Colour: the fine-tune must at least hold the hull's held-out PSNR.
+    assert!(
+        mt.mean.psnr >= mh.mean.psnr - 0.5,
+        "PSNR: trained {:.2} dB vs hull {:.2} dB",
+        mt.mean.psnr,
+        mh.mean.psnr
+    );
+    // The fine-tune learnt something: training PSNR rose by 3 dB or more.
+    let f = tb.stats.finetune;
+    assert!(f.psnr_after >= f.psnr_before + 3.0, "{f:?}");
+}
+
+#[test]
+fn the_export_round_trips_and_the_renderer_reproduces_the_finetune_shader() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = capture(tmp.path(), ObjectKind::Ball, 64, 16);
+    let cap = Capture::load(&dir).unwrap();
+    let obj = ObjectViews::from_capture(&cap, None).unwrap();
+    let views = obj.bake_views();
+    let mut tp = TrainedParams::new(16, 5);
+    tp.finetune.epochs = 10.0;
+    tp.finetune.batch = 1024;
+    let tb = trained::bake(&field_of(&cap), &views, &tp).unwrap();
+    let report = tb.stats.finetune;
+    let asset = tb.baked.into_asset().unwrap();
+    // Write (parallel encoder) → load: the same asset.
+    let out = tmp.path().join("export");
+    let bytes = export::write(&asset, &out).unwrap();
+    let loaded = Asset::load(&out).unwrap();
+    assert_eq!(bytes, bake::file_bytes(&asset).unwrap());
+    assert_eq!(loaded.obj_num, asset.obj_num);
+    assert_eq!(loaded.mlp.weights(), asset.mlp.weights());
+    for (a, b) in loaded.shapes.iter().zip(&asset.shapes) {
+        assert_eq!(a.quads.len(), b.quads.len());
+        assert_eq!(a.atlas.feat0().as_raw(), b.atlas.feat0().as_raw());
+        assert_eq!(a.atlas.feat1().as_raw(), b.atlas.feat1().as_raw());
+    }
+    let fixed = DrawOptions { float: false };
+    let float = DrawOptions { float: true };
+    // The fine-tune's f32 shader is `render --float`: over the training
+    // pixels it trained on (covered, object coverage ≥ 50 %), the float
+    // renders give exactly its final training PSNR; the fixed-point
+    // renders are within one level of the float ones everywhere.
+    let (mut se, mut n) = (0f64, 0u64);
+    for v in &views {
+        let (rf, _) = render(&loaded, &v.camera, &float);
+        let (rx, _) = render(&loaded, &v.camera, &fixed);
+        for (x, y, px) in rf.enumerate_pixels() {
+            let q = rx.get_pixel(x, y);
+            assert_eq!(px.0[3], q.0[3], "coverage differs at ({x}, {y})");
+            for k in 0..3 {
+                let d = (i32::from(px.0[k]) - i32::from(q.0[k])).abs();
+                assert!(d <= 1, "fixed vs float: {d} levels at ({x}, {y})");
+            }
+            let cov = v.coverage(x, y);
+            if px.0[3] == 0 || cov < 128 {
+                continue;
+            }
+            let src = v.image.get_pixel(x, y).0;
+            let a = f64::from(cov) / 255.0;
+            for (&s, &r) in src.iter().zip(&px.0).take(3) {
+                let t = f64::from(s) * a + 255.0 * (1.0 - a);
+                let t = (t / 255.0) as f32 as f64 * 255.0;
+                se += (f64::from(r) - t).powi(2);
+                n += 1;
+            }
+        }
+    }
+    let psnr = 10.0 * (255.0f64 * 255.0 / (se / n as f64)).log10();
+    eprintln!("float renders over the training pixels: {psnr:.4} dB; fine-tune: {report:?}");
+    assert!(
+        (psnr - report.psnr_after).abs() < 1e-3,
+        "{psnr} vs {}",
+        report.psnr_after
+    );
+}
