@@ -1,8 +1,8 @@
 //! A trained field on disk: one safetensors file.
 //!
-//! Tensors: `vertex` (U32, [slots]) — the linear lattice index of every
-//! stored vertex, x fastest over `(res + 1)³`; `values` (F32, [slots,
-//! 4 | 16 | 32]) — raw density, the K SH coefficients of R, G and B, zero
+//! Tensors: `vertex` (U32, `[slots]`) — the linear lattice index of every
+//! stored vertex, x fastest over `(res + 1)³`; `values` (F32, `[slots,
+//! 4 | 16 | 32]`) — raw density, the K SH coefficients of R, G and B, zero
 //! padding (the in-memory record, see `grid`). Metadata
 //! (string → string): `format` = `nerflex-field-1`, `res`, `sh_degree`,
 //! `cube_min`/`cube_max` (three numbers each, world units), `density` (how
