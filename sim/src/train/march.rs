@@ -200,6 +200,19 @@ fn render_ray_k<const S: usize, const K: usize>(
     ray: &GridRay,
     p: &MarchParams,
 ) -> RayOut {
+    forward::<S, K>(grid, bx, ray, p, |_| {})
+}
+
+/// The forward march shared by rendering and training: composites the
+/// ray and hands every shaded sample to `keep` (a no-op when rendering).
+#[inline(always)]
+fn forward<const S: usize, const K: usize>(
+    grid: &SparseGrid,
+    bx: &MarchBox,
+    ray: &GridRay,
+    p: &MarchParams,
+    mut keep: impl FnMut(Sample),
+) -> RayOut {
     let mut out = RayOut {
         rgb: p.background,
         transmittance: 1.0,
@@ -216,13 +229,23 @@ fn render_ray_k<const S: usize, const K: usize>(
     while t < t1 {
         let u = ray.origin + t * ray.dir;
         t += p.step;
-        let Some(c) = grid.corners(u) else { continue };
-        let rec = grid.gather::<S>(&c);
-        let (tau, _, rgb) = shade::<S, K>(&rec, &basis, tau_scale);
-        let a = 1.0 - (-tau).exp();
-        acc += (trans * a) * Vec3::from_array(rgb);
-        trans *= 1.0 - a;
+        let Some(corners) = grid.corners(u) else {
+            continue;
+        };
+        let rec = grid.gather::<S>(&corners);
+        let (tau, dtau_draw, rgb) = shade::<S, K>(&rec, &basis, tau_scale);
+        let decay = (-tau).exp();
+        let w = trans * (1.0 - decay);
+        acc += w * Vec3::from_array(rgb);
+        trans *= decay;
         out.samples += 1;
+        keep(Sample {
+            corners,
+            dtau_draw,
+            rgb,
+            w,
+            t_after: trans,
+        });
         if trans < T_STOP {
             break;
         }
@@ -321,46 +344,9 @@ fn train_ray_k<const S: usize, const K: usize>(
     grads: &mut GradBuf,
 ) -> RayOut {
     scratch.samples.clear();
-    let mut out = RayOut {
-        rgb: p.background,
-        transmittance: 1.0,
-        samples: 0,
-    };
-    let Some((t0, t1)) = ray.clip(bx.lo, bx.hi) else {
-        return out;
-    };
+    let out = forward::<S, K>(grid, bx, ray, p, |s| scratch.samples.push(s));
+    let total = out.rgb;
     let basis = basis_of::<K>(grid.sh_degree, ray.dir);
-    let tau_scale = grid.density_scale() * grid.voxel() * p.step;
-    let mut t = t0 + ray.jitter * p.step;
-    let mut trans = 1.0f32;
-    let mut acc = Vec3::ZERO;
-    while t < t1 {
-        let u = ray.origin + t * ray.dir;
-        t += p.step;
-        let Some(corners) = grid.corners(u) else {
-            continue;
-        };
-        let rec = grid.gather::<S>(&corners);
-        let (tau, dtau_draw, rgb) = shade::<S, K>(&rec, &basis, tau_scale);
-        let decay = (-tau).exp();
-        let w = trans * (1.0 - decay);
-        acc += w * Vec3::from_array(rgb);
-        trans *= decay;
-        scratch.samples.push(Sample {
-            corners,
-            dtau_draw,
-            rgb,
-            w,
-            t_after: trans,
-        });
-        if trans < T_STOP {
-            break;
-        }
-    }
-    let total = acc + trans * p.background;
-    out.rgb = total;
-    out.transmittance = trans;
-    out.samples = scratch.samples.len() as u32;
 
     // Backward.
     let g_c = 2.0 * loss_scale * (total - target);
