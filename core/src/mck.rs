@@ -43,8 +43,9 @@
 //!       + N          (the chosen index per object, u8)
 //! ```
 //!
-//! ([`memory_bytes`]). The paper's problem — 5 objects × 45 configurations,
-//! H = 240 MB in 0.1 MB units (U = 2400) — needs 19 200 + 12 000 + 1 080 + 5
+//! ([`memory_bytes`]). The paper-sized problem — 5 objects × 45 configurations,
+//! H = 240 MB in our 0.1 MB units (U = 2400; the unit and the 45 are our
+//! choices, the paper gives neither) — needs 19 200 + 12 000 + 1 080 + 5
 //! = **32 285 bytes** (`Solver::<5, 45, 2400>::MEMORY_BYTES`). Capacity 0 is
 //! kept in a scalar, so `U` is exactly the number of budget units.
 //!

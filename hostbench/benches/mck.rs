@@ -1,6 +1,7 @@
-//! Solve time of the exact MCK configuration selector: the paper's problem
-//! (5 objects × 45 configurations, H = 240 MB in 0.1 MB units; the paper
-//! reports 1.87 s for its DP) and its growth with objects, configurations
+//! Solve time of the exact MCK configuration selector: a paper-sized problem
+//! (5 objects × 45 configurations, H = 240 MB in 0.1 MB units — the unit and
+//! the 9 × 5 grid are our choices, not the paper's; the paper reports 1.87 s
+//! for its DP) and its growth with objects, configurations
 //! and budget resolution.
 //!
 //! `cargo bench -p nerflex-hostbench --bench mck`, then

@@ -12,7 +12,7 @@
 //!   cores).
 //! - `profiler/table/*`: fixed-point evaluation of a full configuration
 //!   table (`nerflex_core::profiler::Profile::fill_table`), 45 configurations
-//!   (the paper's 9 g × 5 p) and 256 (the solver's maximum), beside the `f64`
+//!   (our 9 g × 5 p grid; the paper gives none) and 256 (the solver's maximum), beside the `f64`
 //!   reference.
 //!
 //! Run: `cargo bench -p nerflex-hostbench --bench profiler`.

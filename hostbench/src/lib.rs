@@ -19,7 +19,7 @@ const PATCHES: [f64; 5] = [5.0, 9.0, 13.0, 17.0, 21.0];
 
 /// Configuration tables shaped like real profiles, deterministic:
 /// configuration k of an object has p = 5, 9, 13, 17, 21 (cycling) and
-/// g = 32 + 16·⌊k/5⌋ (so 45 configurations are the paper's 9 × 5 grid),
+/// g = 32 + 16·⌊k/5⌋ (so 45 configurations form our 9 × 5 grid; the paper gives no grid),
 /// size `k_s·g³·p² + 1.5 MB` with `k_s` chosen so (128, 17) is 40–110 MB,
 /// quality `m − k_q/((g+32)³·(p+4)²)` from about 0.80 at (32, 5) to 0.93–0.96
 /// at (128, 17), varying per object.
