@@ -179,3 +179,62 @@ fn the_export_round_trips_and_the_renderer_reproduces_the_finetune_shader() {
         report.psnr_after
     );
 }
+
+/// Measurement, not a check (`-- --ignored --nocapture`): the texel probe
+/// (`gbuffer::probe`) of the voxel-face geometry and of surface quads at
+/// several settings, on built-in objects.
+#[test]
+#[ignore]
+fn probe_geometries() {
+    use trained::extract::{self, SurfaceSettings};
+    let tmp = tempfile::tempdir().unwrap();
+    let objs = std::env::var("PROBE_OBJECTS").unwrap_or_else(|_| "ball,mug,lattice".into());
+    let gp: Vec<(u32, u32)> = std::env::var("PROBE_GP")
+        .unwrap_or_else(|_| "32:5,64:9".into())
+        .split(',')
+        .map(|s| {
+            let (g, p) = s.split_once(':').unwrap();
+            (g.parse().unwrap(), p.parse().unwrap())
+        })
+        .collect();
+    for name in objs.split(',') {
+        let kind = ObjectKind::from_name(name).unwrap();
+        let dir = capture(tmp.path(), kind, 96, 32);
+        let cap = Capture::load(&dir).unwrap();
+        let obj = ObjectViews::from_capture(&cap, None).unwrap();
+        let views = obj.bake_views();
+        let field = field_of(&cap);
+        let s = extract::Surface::new(&field, 0.05);
+        for &(g, p) in &gp {
+            let mut rows: Vec<(String, extract::Geometry)> = vec![(
+                "voxel faces".into(),
+                extract::extract_voxel_faces(&s, g, p).unwrap(),
+            )];
+            for keep in [1.0, 0.5, 0.25] {
+                for grow in [0.0, 0.5] {
+                    let set = SurfaceSettings {
+                        keep,
+                        grow,
+                        ..SurfaceSettings::default()
+                    };
+                    rows.push((
+                        format!("surface keep {keep} grow {grow}"),
+                        extract::extract_with(&s, g, p, &set).unwrap(),
+                    ));
+                }
+            }
+            for (label, geo) in rows {
+                let t = std::time::Instant::now();
+                let pr = trained::gbuffer::probe(&field, &geo, p, &views).unwrap();
+                eprintln!(
+                    "{name} ({g}, {p}) {label:28}: {} quads, texel-point PSNR {:.2} dB, covers {:.4} of {} object pixels ({:.2} s)",
+                    geo.quads.len(),
+                    pr.psnr,
+                    pr.pixels as f64 / pr.object_pixels as f64,
+                    pr.object_pixels,
+                    t.elapsed().as_secs_f64()
+                );
+            }
+        }
+    }
+}

@@ -174,9 +174,47 @@ pub struct Geometry {
     pub opacity: Vec<bool>,
 }
 
-/// Quads and texel opacity of the field at (g, p); `None` when no point
-/// of the field is inside.
+/// Settings of the surface quads ([`extract_with`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfaceSettings {
+    /// Intervals per voxel edge of the sub-lattice (m): each texel line
+    /// is sampled at m + 1 depths across its voxel, and the axis choice
+    /// and the plane fit use the (m + 1)² lattice lines per axis.
+    pub sub: u32,
+    /// A (axis, side) gets a quad when its lattice lines with an entry
+    /// reach this fraction of the best (axis, side)'s (1: the dominant
+    /// one only; small: every side the surface shows).
+    pub keep: f32,
+    /// Bisection steps refining each lattice line's entry for the plane
+    /// fit.
+    pub refine: u32,
+    /// Each quad's cross-section is grown by this many texels on every
+    /// side beyond its voxel's (overlap against cracks).
+    pub grow: f32,
+}
+
+impl Default for SurfaceSettings {
+    fn default() -> Self {
+        Self {
+            sub: 4,
+            keep: 0.5,
+            refine: 5,
+            grow: 0.0,
+        }
+    }
+}
+
+/// Quads and texel opacity of the field at (g, p) on the field's surface
+/// (default [`SurfaceSettings`]); `None` when no point of the field is
+/// inside.
 pub fn extract(s: &Surface<'_>, g: u32, p: u32) -> Option<Geometry> {
+    extract_with(s, g, p, &SurfaceSettings::default())
+}
+
+/// Quads on the faces of the shell voxels, a texel opaque iff its point
+/// is inside (the first geometry of this baker, kept for comparison):
+/// the first opaque texel a ray meets is up to a voxel behind the surface.
+pub fn extract_voxel_faces(s: &Surface<'_>, g: u32, p: u32) -> Option<Geometry> {
     let cube = object_cube(s)?;
     let grid = classify(s, &cube, g);
     let all = shell_quads(&grid);
@@ -198,6 +236,267 @@ pub fn extract(s: &Surface<'_>, g: u32, p: u32) -> Option<Geometry> {
         quads,
         opacity: kept,
     })
+}
+
+/// Quads on the field's surface: per shell voxel, the surface seen along
+/// each axis from each side (where a line along the axis, coming from
+/// that side, first enters the inside within the voxel's slab) is a
+/// height field over the voxel's cross-section; the sides whose height
+/// field covers enough of it (see [`SurfaceSettings::keep`]) get one
+/// planar quad each, tilted to the plane fitted to that height field (a
+/// parallelogram over the cross-section), a texel opaque iff its line
+/// has such an entry. Slabs of neighbouring voxels share their end
+/// depths, so each crossing belongs to exactly one voxel along the axis.
+pub fn extract_with(
+    s: &Surface<'_>,
+    g: u32,
+    p: u32,
+    set: &SurfaceSettings,
+) -> Option<Geometry> {
+    let cube = object_cube(s)?;
+    let grid = classify(s, &cube, g);
+    let shell: Vec<[u32; 3]> = (0..g)
+        .flat_map(|k| (0..g).flat_map(move |j| (0..g).map(move |i| [i, j, k])))
+        .filter(|&[i, j, k]| grid.class(i as i64, j as i64, k as i64) == VoxelClass::Shell)
+        .collect();
+    let per: Vec<Vec<(Quad, Vec<bool>)>> = shell
+        .par_iter()
+        .map(|&[i, j, k]| voxel_quads(s, grid.corner(i, j, k), grid.voxel, [i, j, k], p, set))
+        .collect();
+    let mut quads = Vec::new();
+    let mut opacity = Vec::new();
+    for (q, occ) in per.into_iter().flatten() {
+        quads.push(q);
+        opacity.extend(occ);
+    }
+    Some(Geometry {
+        cube,
+        voxel: grid.voxel,
+        shell_voxels: grid.count(VoxelClass::Shell),
+        full_voxels: grid.count(VoxelClass::Full),
+        quads,
+        opacity,
+    })
+}
+
+/// The first entry into the inside along a line sampled at `n` depths
+/// (`inside(t)`, t = 0 at the slab's low end), coming from the high end
+/// (`from_high`) or the low end: the pair (outside sample, inside sample)
+/// of depth indices, if any.
+#[inline]
+fn first_entry(n: usize, from_high: bool, inside: impl Fn(usize) -> bool) -> Option<(usize, usize)> {
+    let mut prev = None;
+    for step in 0..n {
+        let t = if from_high { n - 1 - step } else { step };
+        let now = inside(t);
+        if now && prev == Some(false) {
+            let out = if from_high { t + 1 } else { t - 1 };
+            return Some((out, t));
+        }
+        prev = Some(now);
+    }
+    None
+}
+
+/// The square face of the voxel at `lo` (edge `h`) on `axis`, side
+/// `sign`, grown by `e` on every side: as `quads::face`, (origin offset,
+/// u, v) chosen so that u × v = −normal.
+fn grown_face(lo: Vec3, h: f32, e: f32, axis: usize, positive: bool, voxel: [u32; 3]) -> Quad {
+    let (x, y, z) = (Vec3::X, Vec3::Y, Vec3::Z);
+    let (off, u, v) = match (axis, positive) {
+        (0, true) => (x, z, y),
+        (0, false) => (Vec3::ZERO, y, z),
+        (1, true) => (y, x, z),
+        (1, false) => (Vec3::ZERO, z, x),
+        (2, true) => (z, y, x),
+        _ => (Vec3::ZERO, x, y),
+    };
+    let mut normal = Vec3::ZERO;
+    normal[axis] = if positive { 1.0 } else { -1.0 };
+    Quad {
+        origin: lo + h * off - e * (u + v),
+        u: (h + 2.0 * e) * u,
+        v: (h + 2.0 * e) * v,
+        normal,
+        voxel,
+    }
+}
+
+/// Least-squares plane d = a + b·x + c·y through `pts` (x, y, d); a
+/// constant at their mean when they do not span a plane.
+fn fit_plane(pts: &[(f32, f32, f32)]) -> (f32, f32, f32) {
+    let n = pts.len() as f64;
+    if pts.is_empty() {
+        return (0.0, 0.0, 0.0);
+    }
+    let mean = |f: &dyn Fn(&(f32, f32, f32)) -> f64| pts.iter().map(f).sum::<f64>() / n;
+    let (mx, my, md) = (
+        mean(&|q| f64::from(q.0)),
+        mean(&|q| f64::from(q.1)),
+        mean(&|q| f64::from(q.2)),
+    );
+    let (mut sxx, mut sxy, mut syy, mut sxd, mut syd) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for q in pts {
+        let (x, y, d) = (
+            f64::from(q.0) - mx,
+            f64::from(q.1) - my,
+            f64::from(q.2) - md,
+        );
+        sxx += x * x;
+        sxy += x * y;
+        syy += y * y;
+        sxd += x * d;
+        syd += y * d;
+    }
+    let det = sxx * syy - sxy * sxy;
+    let scale = (sxx + syy).max(1e-30);
+    let (b, c) = if det > 1e-6 * scale * scale {
+        ((sxd * syy - syd * sxy) / det, (syd * sxx - sxd * sxy) / det)
+    } else if sxx > 1e-9 * scale && syy <= 1e-9 * scale {
+        (sxd / sxx, 0.0)
+    } else if syy > 1e-9 * scale && sxx <= 1e-9 * scale {
+        (0.0, syd / syy)
+    } else {
+        (0.0, 0.0)
+    };
+    let a = md - b * mx - c * my;
+    (a as f32, b as f32, c as f32)
+}
+
+/// Largest slope of a fitted plane (a steeper fit is clamped: it would
+/// come from a few points of a surface seen at grazing incidence).
+const MAX_SLOPE: f32 = 3.0;
+
+/// The surface quads of one shell voxel (lower corner `lo`, edge `h`).
+fn voxel_quads(
+    s: &Surface<'_>,
+    lo: Vec3,
+    h: f32,
+    voxel: [u32; 3],
+    p: u32,
+    set: &SurfaceSettings,
+) -> Vec<(Quad, Vec<bool>)> {
+    let m = set.sub.max(1) as usize;
+    let n = m + 1;
+    let step = h / m as f32;
+    let at = |a: usize, b: usize, c: usize| lo + step * Vec3::new(a as f32, b as f32, c as f32);
+    let mut lat = vec![false; n * n * n];
+    for c in 0..n {
+        for b in 0..n {
+            for a in 0..n {
+                lat[(c * n + b) * n + a] = s.inside(at(a, b, c));
+            }
+        }
+    }
+    // Lattice index of (depth t along `axis`, line coordinates (i1, i2)
+    // along the axes after it, cyclically).
+    let idx = |axis: usize, t: usize, i1: usize, i2: usize| {
+        let mut ijk = [0usize; 3];
+        ijk[axis] = t;
+        ijk[(axis + 1) % 3] = i1;
+        ijk[(axis + 2) % 3] = i2;
+        (ijk[2] * n + ijk[1]) * n + ijk[0]
+    };
+    // Lines with an entry, per (axis, side).
+    let mut count = [[0usize; 2]; 3];
+    for (axis, cnt) in count.iter_mut().enumerate() {
+        for (side, c) in cnt.iter_mut().enumerate() {
+            for i2 in 0..n {
+                for i1 in 0..n {
+                    if first_entry(n, side == 0, |t| lat[idx(axis, t, i1, i2)]).is_some() {
+                        *c += 1;
+                    }
+                }
+            }
+        }
+    }
+    let best = count.iter().flatten().copied().max().unwrap_or(0);
+    if best == 0 {
+        return Vec::new();
+    }
+    let need = ((set.keep * best as f32).ceil() as usize).max(1);
+    let p2 = (p * p) as usize;
+    let grow = set.grow.max(0.0) * h / (p.max(2) - 1) as f32;
+    let mut out = Vec::new();
+    for (axis, cnt) in count.iter().enumerate() {
+        for (side, &c) in cnt.iter().enumerate() {
+            if c < need {
+                continue;
+            }
+            let positive = side == 0;
+            let (a1, a2) = ((axis + 1) % 3, (axis + 2) % 3);
+            // Plane fit to the refined entries of the lattice lines.
+            let mut pts = Vec::with_capacity(n * n);
+            for i2 in 0..n {
+                for i1 in 0..n {
+                    let Some((to, ti)) =
+                        first_entry(n, positive, |t| lat[idx(axis, t, i1, i2)])
+                    else {
+                        continue;
+                    };
+                    let mut x_out = at(0, 0, 0);
+                    x_out[a1] += step * i1 as f32;
+                    x_out[a2] += step * i2 as f32;
+                    let mut x_in = x_out;
+                    x_out[axis] += step * to as f32;
+                    x_in[axis] += step * ti as f32;
+                    for _ in 0..set.refine {
+                        let mid = 0.5 * (x_out + x_in);
+                        if s.inside(mid) {
+                            x_in = mid;
+                        } else {
+                            x_out = mid;
+                        }
+                    }
+                    let d = 0.5 * (x_out[axis] + x_in[axis]) - lo[axis];
+                    pts.push((step * i1 as f32, step * i2 as f32, d));
+                }
+            }
+            let (pa, pb, pc) = fit_plane(&pts);
+            let (pb, pc) = (
+                pb.clamp(-MAX_SLOPE, MAX_SLOPE),
+                pc.clamp(-MAX_SLOPE, MAX_SLOPE),
+            );
+            let flat = grown_face(lo, h, grow, axis, positive, voxel);
+            // Texel opacity: an entry from this side on the texel's line.
+            let mut occ = vec![false; p2];
+            for (t, o) in occ.iter_mut().enumerate() {
+                let x = texel_point(&flat, p, t as u32 % p, t as u32 / p);
+                *o = first_entry(n, positive, |d| {
+                    let mut q = x;
+                    q[axis] = lo[axis] + step * d as f32;
+                    s.inside(q)
+                })
+                .is_some();
+            }
+            if !occ.iter().any(|&o| o) {
+                continue;
+            }
+            // Tilt the face onto the plane (depth along `axis` affine in
+            // the other two coordinates): still a parallelogram.
+            let depth = |q: Vec3| pa + pb * (q[a1] - lo[a1]) + pc * (q[a2] - lo[a2]);
+            let mut origin = flat.origin;
+            origin[axis] = lo[axis] + depth(flat.origin);
+            let tilt = |e: Vec3| {
+                let mut e2 = e;
+                e2[axis] = pb * e[a1] + pc * e[a2];
+                e2
+            };
+            let (u, v) = (tilt(flat.u), tilt(flat.v));
+            let normal = (-u.cross(v)).normalize_or(flat.normal);
+            out.push((
+                Quad {
+                    origin,
+                    u,
+                    v,
+                    normal,
+                    voxel,
+                },
+                occ,
+            ));
+        }
+    }
+    out
 }
 
 #[cfg(test)]

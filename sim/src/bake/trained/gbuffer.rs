@@ -142,3 +142,84 @@ pub fn rasterize(
     }
     Ok(g)
 }
+
+/// How well a geometry's texel points carry the training images, before
+/// any fitting: the field's own colour at the point of the texel each
+/// covered training pixel shows, seen along the pixel's direction, against
+/// the pixel (a direct measure of parallax: a texel off the surface shows
+/// different surface points from different views), and how many of the
+/// object's pixels the geometry covers (cracks lose pixels).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TexelProbe {
+    /// PSNR (dB) of the field's colour at the texel points against the
+    /// covered training pixels (object coverage ≥ 50 %).
+    pub psnr: f64,
+    /// Covered training pixels.
+    pub pixels: u64,
+    /// Training pixels of the object (coverage ≥ 50 %).
+    pub object_pixels: u64,
+}
+
+/// [`TexelProbe`] of `geo` (at patch `p`) on `views`.
+pub fn probe(
+    field: &dyn crate::train::field::RadianceField,
+    geo: &super::extract::Geometry,
+    p: u32,
+    views: &[BakeView<'_>],
+) -> Result<TexelProbe, BakeError> {
+    use super::super::{BakeParams, BakeStats, BakedObject};
+    use glam::Vec3;
+    let layout = AtlasLayout::new(geo.quads.len(), p);
+    let mask: Vec<[u8; 8]> = geo
+        .opacity
+        .iter()
+        .map(|&o| [u8::from(o), 0, 0, 0, 0, 0, 0, 0])
+        .collect();
+    let asset = BakedObject {
+        params: BakeParams::new(2, p),
+        cube: geo.cube,
+        quads: geo.quads.clone(),
+        atlas: super::export::atlas(&layout, &mask),
+        mlp: nerflex_core::shader::MlpWeights::ZERO,
+        stats: BakeStats::default(),
+    }
+    .into_asset()
+    .map_err(|e| BakeError::BadParam(format!("building the probe's asset failed: {e}")))?;
+    let gb = rasterize(&asset, &layout, views)?;
+    let p2 = p * p;
+    let se: f64 = gb
+        .pixels
+        .par_iter()
+        .map(|px| {
+            let q = &geo.quads[(px.texel / p2) as usize];
+            let t = px.texel % p2;
+            let x = super::extract::texel_point(q, p, t % p, t / p);
+            let c = field
+                .color(x, Vec3::from_array(px.dir))
+                .clamp(Vec3::ZERO, Vec3::ONE);
+            (0..3)
+                .map(|k| f64::from(c[k] - px.target[k]).powi(2))
+                .sum::<f64>()
+        })
+        .sum();
+    let object_pixels: u64 = views
+        .par_iter()
+        .map(|v| {
+            let (w, h) = v.image.dimensions();
+            let mut n = 0u64;
+            for y in 0..h {
+                for x in 0..w {
+                    n += u64::from(v.coverage(x, y) >= 128);
+                }
+            }
+            n
+        })
+        .sum();
+    let n = gb.pixels.len() as u64;
+    let mse = se / (3 * n.max(1)) as f64;
+    Ok(TexelProbe {
+        psnr: -10.0 * mse.max(1e-12).log10(),
+        pixels: n,
+        object_pixels,
+    })
+}
