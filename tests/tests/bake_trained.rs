@@ -210,8 +210,8 @@ fn probe_geometries() {
                 "voxel faces".into(),
                 extract::extract_voxel_faces(&s, g, p).unwrap(),
             )];
-            for keep in [1.0, 0.5, 0.25] {
-                for grow in [0.0, 0.5] {
+            for keep in [1.0, 0.5] {
+                for grow in [0.0, 0.5, 1.0, 2.0] {
                     let set = SurfaceSettings {
                         keep,
                         grow,
@@ -225,14 +225,68 @@ fn probe_geometries() {
             }
             for (label, geo) in rows {
                 let t = std::time::Instant::now();
-                let pr = trained::gbuffer::probe(&field, &geo, p, &views).unwrap();
+                let pr = trained::gbuffer::probe(&field, s.sigma, &geo, p, &views).unwrap();
                 eprintln!(
-                    "{name} ({g}, {p}) {label:28}: {} quads, texel-point PSNR {:.2} dB, covers {:.4} of {} object pixels ({:.2} s)",
+                    "{name} ({g}, {p}) {label:28}: {} quads, texel-point PSNR {:.2} dB (on rays that hit: {:.2}, surface point {:.2}), far {:.4}, covers {:.4} of {} object pixels ({:.2} s)",
                     geo.quads.len(),
                     pr.psnr,
+                    pr.hit_psnr,
+                    pr.surface_psnr,
+                    pr.far_pixels as f64 / pr.pixels as f64,
                     pr.pixels as f64 / pr.object_pixels as f64,
                     pr.object_pixels,
                     t.elapsed().as_secs_f64()
+                );
+            }
+        }
+    }
+}
+
+/// Measurement (`-- --ignored --nocapture`): held-out quality of whole
+/// bakes with the geometry chosen by the `NERFLEX_*` variables of
+/// `extract::extract` (experiment only).
+#[test]
+#[ignore]
+fn bake_geometries() {
+    let tmp = tempfile::tempdir().unwrap();
+    let objs = std::env::var("PROBE_OBJECTS").unwrap_or_else(|_| "ball,mug,lattice".into());
+    let gp: Vec<(u32, u32)> = std::env::var("PROBE_GP")
+        .unwrap_or_else(|_| "32:5,64:9".into())
+        .split(',')
+        .map(|s| {
+            let (g, p) = s.split_once(':').unwrap();
+            (g.parse().unwrap(), p.parse().unwrap())
+        })
+        .collect();
+    let configs = std::env::var("PROBE_CONFIGS").unwrap_or_else(|_| "faces,0.5:0.5,1:1".into());
+    for name in objs.split(',') {
+        let kind = ObjectKind::from_name(name).unwrap();
+        let dir = capture(tmp.path(), kind, 96, 32);
+        let cap = Capture::load(&dir).unwrap();
+        let obj = ObjectViews::from_capture(&cap, None).unwrap();
+        let views = obj.bake_views();
+        let field = field_of(&cap);
+        for &(g, p) in &gp {
+            for c in configs.split(',') {
+                std::env::remove_var("NERFLEX_FACES");
+                if c == "faces" {
+                    std::env::set_var("NERFLEX_FACES", "1");
+                } else {
+                    let (k, gr) = c.split_once(':').unwrap();
+                    std::env::set_var("NERFLEX_KEEP", k);
+                    std::env::set_var("NERFLEX_GROW", gr);
+                }
+                let mut tp = TrainedParams::new(g, p);
+                tp.finetune.epochs = 3.0;
+                let tb = trained::bake(&field, &views, &tp).unwrap();
+                let st = tb.stats;
+                let a = tb.baked.into_asset().unwrap();
+                let bytes = bake::file_bytes(&a).unwrap();
+                let m = sweep::measure_views(&a, &obj.test, &sweep::fixed_point_render, None, false)
+                    .unwrap();
+                eprintln!(
+                    "{name} ({g}, {p}) {c:10}: {} quads kept, {} bytes, train PSNR {:.2} -> {:.2}, held-out PSNR {:.2} dB SSIM {:.4}, extract {:.2} s",
+                    st.kept_quads, bytes, st.finetune.psnr_before, st.finetune.psnr_after, m.mean.psnr, m.mean.ssim, st.times.extract_s
                 );
             }
         }

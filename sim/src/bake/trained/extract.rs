@@ -208,7 +208,21 @@ impl Default for SurfaceSettings {
 /// (default [`SurfaceSettings`]); `None` when no point of the field is
 /// inside.
 pub fn extract(s: &Surface<'_>, g: u32, p: u32) -> Option<Geometry> {
-    extract_with(s, g, p, &SurfaceSettings::default())
+    // EXPERIMENT-ONLY (remove before merge)
+    if std::env::var("NERFLEX_FACES").is_ok() {
+        return extract_voxel_faces(s, g, p);
+    }
+    let mut set = SurfaceSettings::default();
+    if let Ok(v) = std::env::var("NERFLEX_KEEP") {
+        set.keep = v.parse().unwrap_or(set.keep);
+    }
+    if let Ok(v) = std::env::var("NERFLEX_GROW") {
+        set.grow = v.parse().unwrap_or(set.grow);
+    }
+    if let Ok(v) = std::env::var("NERFLEX_SUB") {
+        set.sub = v.parse().unwrap_or(set.sub);
+    }
+    extract_with(s, g, p, &set)
 }
 
 /// Quads on the faces of the shell voxels, a texel opaque iff its point

@@ -154,15 +154,26 @@ pub struct TexelProbe {
     /// PSNR (dB) of the field's colour at the texel points against the
     /// covered training pixels (object coverage ≥ 50 %).
     pub psnr: f64,
+    /// The same over the pixels whose ray meets the field's inside.
+    pub hit_psnr: f64,
+    /// Over those pixels, the field's colour at the first inside point
+    /// along each pixel's ray instead (no parallax, no texel size: the
+    /// ceiling of `hit_psnr` with this field).
+    pub surface_psnr: f64,
+    /// Of those, pixels whose texel point lies more than a voxel from
+    /// the surface point (cracks showing the far side, stray quads).
+    pub far_pixels: u64,
     /// Covered training pixels.
     pub pixels: u64,
     /// Training pixels of the object (coverage ≥ 50 %).
     pub object_pixels: u64,
 }
 
-/// [`TexelProbe`] of `geo` (at patch `p`) on `views`.
+/// [`TexelProbe`] of `geo` (at patch `p`) on `views`; `surface_sigma`
+/// is the inside test's density ([`super::extract::Surface::sigma`]).
 pub fn probe(
     field: &dyn crate::train::field::RadianceField,
+    surface_sigma: f32,
     geo: &super::extract::Geometry,
     p: u32,
     views: &[BakeView<'_>],
@@ -187,21 +198,80 @@ pub fn probe(
     .map_err(|e| BakeError::BadParam(format!("building the probe's asset failed: {e}")))?;
     let gb = rasterize(&asset, &layout, views)?;
     let p2 = p * p;
-    let se: f64 = gb
+    let surf = super::extract::Surface {
+        field,
+        sigma: surface_sigma,
+    };
+    let origins: Vec<Vec3> = gb
+        .per_view
+        .iter()
+        .zip(views)
+        .flat_map(|(&n, v)| std::iter::repeat_n(v.camera.position(), n))
+        .collect();
+    let step = geo.voxel / 8.0;
+    let on_surface = |o: Vec3, d: Vec3| -> Option<Vec3> {
+        // Entry and exit of the ray through the cube.
+        let inv = d.recip();
+        let (a, b) = ((geo.cube.min - o) * inv, (geo.cube.max - o) * inv);
+        let t0 = a.min(b).max_element().max(0.0);
+        let t1 = a.max(b).min_element();
+        let mut t = t0;
+        while t <= t1 {
+            if surf.inside(o + t * d) {
+                let (mut lo, mut hi) = ((t - step).max(t0), t);
+                for _ in 0..10 {
+                    let mid = 0.5 * (lo + hi);
+                    if surf.inside(o + mid * d) {
+                        hi = mid;
+                    } else {
+                        lo = mid;
+                    }
+                }
+                return Some(o + hi * d);
+            }
+            t += step;
+        }
+        None
+    };
+    let err = |x: Vec3, px: &GPixel| {
+        let c = field
+            .color(x, Vec3::from_array(px.dir))
+            .clamp(Vec3::ZERO, Vec3::ONE);
+        (0..3)
+            .map(|k| f64::from(c[k] - px.target[k]).powi(2))
+            .sum::<f64>()
+    };
+    // (texel point error, and on rays that meet the inside: texel point
+    // error, surface point error, 1)
+    let (se, hit_se2, hit_n) = gb
         .pixels
         .par_iter()
-        .map(|px| {
+        .zip(origins.par_iter())
+        .map(|(px, &o)| {
             let q = &geo.quads[(px.texel / p2) as usize];
             let t = px.texel % p2;
             let x = super::extract::texel_point(q, p, t % p, t / p);
-            let c = field
-                .color(x, Vec3::from_array(px.dir))
-                .clamp(Vec3::ZERO, Vec3::ONE);
-            (0..3)
-                .map(|k| f64::from(c[k] - px.target[k]).powi(2))
-                .sum::<f64>()
+            let e = err(x, px);
+            match on_surface(o, Vec3::from_array(px.dir)) {
+                Some(y) => {
+                    let far = u64::from((x - y).length() > geo.voxel);
+                    (e, [e, err(y, px)], [1u64, far])
+                }
+                None => (e, [0.0; 2], [0; 2]),
+            }
         })
-        .sum();
+        .reduce(
+            || (0.0, [0.0; 2], [0; 2]),
+            |a, b| {
+                (
+                    a.0 + b.0,
+                    [a.1[0] + b.1[0], a.1[1] + b.1[1]],
+                    [a.2[0] + b.2[0], a.2[1] + b.2[1]],
+                )
+            },
+        );
+    let hit = (hit_se2, hit_n);
+    let (hit_se, surface_se, hits, far) = (hit.0[0], hit.0[1], hit.1[0], hit.1[1]);
     let object_pixels: u64 = views
         .par_iter()
         .map(|v| {
@@ -216,9 +286,12 @@ pub fn probe(
         })
         .sum();
     let n = gb.pixels.len() as u64;
-    let mse = se / (3 * n.max(1)) as f64;
+    let psnr = |se: f64, n: u64| -10.0 * (se / (3 * n.max(1)) as f64).max(1e-12).log10();
     Ok(TexelProbe {
-        psnr: -10.0 * mse.max(1e-12).log10(),
+        psnr: psnr(se, n),
+        hit_psnr: psnr(hit_se, hits),
+        surface_psnr: psnr(surface_se, hits),
+        far_pixels: far,
         pixels: n,
         object_pixels,
     })
