@@ -211,7 +211,7 @@ fn probe_geometries() {
                 extract::extract_voxel_faces(&s, g, p).unwrap(),
             )];
             for keep in [1.0, 0.5] {
-                for grow in [0.0, 0.5, 1.0, 2.0] {
+                for grow in [0.0, 0.0625, 0.125, 0.25] {
                     let set = SurfaceSettings {
                         keep,
                         grow,
@@ -272,9 +272,10 @@ fn bake_geometries() {
                 if c == "faces" {
                     std::env::set_var("NERFLEX_FACES", "1");
                 } else {
-                    let (k, gr) = c.split_once(':').unwrap();
-                    std::env::set_var("NERFLEX_KEEP", k);
-                    std::env::set_var("NERFLEX_GROW", gr);
+                    let f: Vec<&str> = c.split(':').collect();
+                    std::env::set_var("NERFLEX_KEEP", f[0]);
+                    std::env::set_var("NERFLEX_GROW", f[1]);
+                    std::env::set_var("NERFLEX_SUB", f.get(2).copied().unwrap_or("4"));
                 }
                 let mut tp = TrainedParams::new(g, p);
                 tp.finetune.epochs = 3.0;

@@ -177,7 +177,7 @@ pub struct Geometry {
 /// Settings of the surface quads ([`extract_with`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SurfaceSettings {
-    /// Intervals per voxel edge of the sub-lattice (m): each texel line
+    /// Intervals per voxel edge of the sub-lattice (m, 1…63): each texel line
     /// is sampled at m + 1 depths across its voxel, and the axis choice
     /// and the plane fit use the (m + 1)² lattice lines per axis.
     pub sub: u32,
@@ -188,8 +188,8 @@ pub struct SurfaceSettings {
     /// Bisection steps refining each lattice line's entry for the plane
     /// fit.
     pub refine: u32,
-    /// Each quad's cross-section is grown by this many texels on every
-    /// side beyond its voxel's (overlap against cracks).
+    /// Each quad's cross-section is grown by this fraction of the voxel
+    /// edge on every side beyond its voxel's (overlap against cracks).
     pub grow: f32,
 }
 
@@ -199,7 +199,7 @@ impl Default for SurfaceSettings {
             sub: 4,
             keep: 0.5,
             refine: 5,
-            grow: 0.0,
+            grow: 0.125,
         }
     }
 }
@@ -390,7 +390,7 @@ fn voxel_quads(
     p: u32,
     set: &SurfaceSettings,
 ) -> Vec<(Quad, Vec<bool>)> {
-    let m = set.sub.max(1) as usize;
+    let m = set.sub.clamp(1, 63) as usize;
     let n = m + 1;
     let step = h / m as f32;
     let at = |a: usize, b: usize, c: usize| lo + step * Vec3::new(a as f32, b as f32, c as f32);
@@ -430,7 +430,11 @@ fn voxel_quads(
     }
     let need = ((set.keep * best as f32).ceil() as usize).max(1);
     let p2 = (p * p) as usize;
-    let grow = set.grow.max(0.0) * h / (p.max(2) - 1) as f32;
+    let grow = set.grow.clamp(0.0, 1.0) * h;
+    // Inside pattern of each lattice line along each axis (bit t = depth t).
+    let column = |axis: usize, i1: usize, i2: usize| -> u64 {
+        (0..n).fold(0u64, |acc, t| acc | (u64::from(lat[idx(axis, t, i1, i2)]) << t))
+    };
     let mut out = Vec::new();
     for (axis, cnt) in count.iter().enumerate() {
         for (side, &c) in cnt.iter().enumerate() {
@@ -473,15 +477,37 @@ fn voxel_quads(
             );
             let flat = grown_face(lo, h, grow, axis, positive, voxel);
             // Texel opacity: an entry from this side on the texel's line.
+            // Where the four lattice lines around the texel's line agree,
+            // their entry interval is checked at its two ends (no entry:
+            // none); elsewhere the line is sampled at all n depths.
             let mut occ = vec![false; p2];
             for (t, o) in occ.iter_mut().enumerate() {
                 let x = texel_point(&flat, p, t as u32 % p, t as u32 / p);
-                *o = first_entry(n, positive, |d| {
+                let sample = |d: usize| {
                     let mut q = x;
                     q[axis] = lo[axis] + step * d as f32;
                     s.inside(q)
-                })
-                .is_some();
+                };
+                let cell = |c: f32| ((c / step).floor().max(0.0) as usize).min(m - 1);
+                let (j1, j2) = (cell(x[a1] - lo[a1]), cell(x[a2] - lo[a2]));
+                let c0 = column(axis, j1, j2);
+                let same = [(1, 0), (0, 1), (1, 1)]
+                    .iter()
+                    .all(|&(d1, d2)| column(axis, j1 + d1, j2 + d2) == c0);
+                *o = if same {
+                    match first_entry(n, positive, |d| c0 >> d & 1 == 1) {
+                        None => false,
+                        Some((to, ti)) => {
+                            if !sample(to) && sample(ti) {
+                                true
+                            } else {
+                                first_entry(n, positive, sample).is_some()
+                            }
+                        }
+                    }
+                } else {
+                    first_entry(n, positive, sample).is_some()
+                };
             }
             if !occ.iter().any(|&o| o) {
                 continue;
