@@ -1,16 +1,27 @@
-//! Geometry from a radiance field: grid-aligned quads where the field's
-//! opacity says surface, and binary texel opacity at p×p per quad.
+//! Geometry from a radiance field: planar quads on the field's surface,
+//! and binary texel opacity at p×p per quad.
 //!
 //! A point is *inside* when the field's opacity over a step of half a field
 //! cell reaches `surface_alpha` (default 0.05: a trained field's surface
 //! spreads over a few cells, so each half cell is only partly opaque). Voxels of the
 //! g³ grid are classified at the 27 points of a half-voxel lattice, as the
 //! hull baker does: all inside → full, none → empty, else *shell* (the
-//! surface crosses it). Every face of every shell voxel is a quad (the
-//! shell geometry of `bake::quads::shell_quads`); a texel is opaque iff its
-//! point is inside. A ray through the shell then stops at the first opaque
-//! texel, which is within a voxel of the field's surface and exact to a
-//! texel across the view (MobileNeRF's binarised alpha on its quads).
+//! surface crosses it).
+//!
+//! [`extract`] puts the quads on the surface (MobileNeRF moves its quads'
+//! vertices onto the surface while training; here they are placed there
+//! from the start): per shell voxel, the surface seen along an axis from
+//! one side is a height field over the voxel's cross-section; each side
+//! that sees enough of the surface gets one parallelogram tilted onto the
+//! plane fitted to its height field, a texel opaque iff its line along the
+//! axis enters the inside within the voxel (see [`extract_with`]). A ray
+//! then stops at a texel on (a plane through) the surface, so a texel
+//! shows the same surface point from every view.
+//!
+//! [`extract_voxel_faces`] is the first geometry: every face of every
+//! shell voxel (`bake::quads::shell_quads`), a texel opaque iff its point
+//! is inside; the first opaque texel a ray meets is up to a voxel behind
+//! the surface (parallax).
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -208,21 +219,7 @@ impl Default for SurfaceSettings {
 /// (default [`SurfaceSettings`]); `None` when no point of the field is
 /// inside.
 pub fn extract(s: &Surface<'_>, g: u32, p: u32) -> Option<Geometry> {
-    // EXPERIMENT-ONLY (remove before merge)
-    if std::env::var("NERFLEX_FACES").is_ok() {
-        return extract_voxel_faces(s, g, p);
-    }
-    let mut set = SurfaceSettings::default();
-    if let Ok(v) = std::env::var("NERFLEX_KEEP") {
-        set.keep = v.parse().unwrap_or(set.keep);
-    }
-    if let Ok(v) = std::env::var("NERFLEX_GROW") {
-        set.grow = v.parse().unwrap_or(set.grow);
-    }
-    if let Ok(v) = std::env::var("NERFLEX_SUB") {
-        set.sub = v.parse().unwrap_or(set.sub);
-    }
-    extract_with(s, g, p, &set)
+    extract_with(s, g, p, &SurfaceSettings::default())
 }
 
 /// Quads on the faces of the shell voxels, a texel opaque iff its point
@@ -478,16 +475,13 @@ fn voxel_quads(
             let flat = grown_face(lo, h, grow, axis, positive, voxel);
             // Texel opacity: an entry from this side on the texel's line.
             // Where the four lattice lines around the texel's line agree,
-            // their entry interval is checked at its two ends (no entry:
-            // none); elsewhere the line is sampled at all n depths.
+            // the line takes their answer (a feature thinner than the
+            // lattice between them is lost); where they differ (the
+            // silhouette passes between them) it is sampled at all n
+            // depths, exact to a texel.
             let mut occ = vec![false; p2];
             for (t, o) in occ.iter_mut().enumerate() {
                 let x = texel_point(&flat, p, t as u32 % p, t as u32 / p);
-                let sample = |d: usize| {
-                    let mut q = x;
-                    q[axis] = lo[axis] + step * d as f32;
-                    s.inside(q)
-                };
                 let cell = |c: f32| ((c / step).floor().max(0.0) as usize).min(m - 1);
                 let (j1, j2) = (cell(x[a1] - lo[a1]), cell(x[a2] - lo[a2]));
                 let c0 = column(axis, j1, j2);
@@ -495,18 +489,14 @@ fn voxel_quads(
                     .iter()
                     .all(|&(d1, d2)| column(axis, j1 + d1, j2 + d2) == c0);
                 *o = if same {
-                    match first_entry(n, positive, |d| c0 >> d & 1 == 1) {
-                        None => false,
-                        Some((to, ti)) => {
-                            if !sample(to) && sample(ti) {
-                                true
-                            } else {
-                                first_entry(n, positive, sample).is_some()
-                            }
-                        }
-                    }
+                    first_entry(n, positive, |d| c0 >> d & 1 == 1).is_some()
                 } else {
-                    first_entry(n, positive, sample).is_some()
+                    first_entry(n, positive, |d| {
+                        let mut q = x;
+                        q[axis] = lo[axis] + step * d as f32;
+                        s.inside(q)
+                    })
+                    .is_some()
                 };
             }
             if !occ.iter().any(|&o| o) {
