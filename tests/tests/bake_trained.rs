@@ -180,9 +180,49 @@ fn the_export_round_trips_and_the_renderer_reproduces_the_finetune_shader() {
     );
 }
 
+#[test]
+fn surface_quads_cut_parallax_on_a_mug() {
+    use trained::extract;
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = capture(tmp.path(), ObjectKind::Mug, 96, 32);
+    let cap = Capture::load(&dir).unwrap();
+    let obj = ObjectViews::from_capture(&cap, None).unwrap();
+    let views = obj.bake_views();
+    let field = field_of(&cap);
+    let s = extract::Surface::new(&field, 0.05);
+    let (g, p) = (32, 5);
+    let faces = extract::extract_voxel_faces(&s, g, p).unwrap();
+    let surf = extract::extract(&s, g, p).unwrap();
+    let probe = |geo| trained::gbuffer::probe(&field, s.sigma, geo, p, &views).unwrap();
+    let (pf, ps) = (probe(&faces), probe(&surf));
+    let far = |r: &trained::gbuffer::TexelProbe| r.far_pixels as f64 / r.pixels as f64;
+    let cover = |r: &trained::gbuffer::TexelProbe| r.pixels as f64 / r.object_pixels as f64;
+    eprintln!(
+        "voxel faces: {} quads, {pf:?}\nsurface quads: {} quads, {ps:?}",
+        faces.quads.len(),
+        surf.quads.len()
+    );
+    // The field's own colour at the texel each training pixel shows,
+    // against the pixel: 17.85 dB on voxel faces, 21.44 dB on surface
+    // quads when written (ceiling, the colour where each pixel's ray
+    // meets the surface: 22.9 dB); the margin asked is 2 dB.
+    assert!(
+        ps.psnr >= pf.psnr + 2.0,
+        "texel-point PSNR: surface {:.2} dB vs faces {:.2} dB",
+        ps.psnr,
+        pf.psnr
+    );
+    // Texels more than a voxel from the surface point their pixel sees:
+    // 11.8 % of the pixels on faces, 0.75 % on surface quads when written.
+    assert!(far(&ps) <= 0.25 * far(&pf), "far: {} vs {}", far(&ps), far(&pf));
+    // No coverage lost (cracks): 0.980 vs 0.994 when written.
+    assert!(cover(&ps) >= cover(&pf) - 0.005);
+    assert!(surf.quads.len() < faces.quads.len());
+}
+
 /// Measurement, not a check (`-- --ignored --nocapture`): the texel probe
 /// (`gbuffer::probe`) of the voxel-face geometry and of surface quads at
-/// several settings, on built-in objects.
+/// several settings, on built-in objects (`PROBE_OBJECTS`, `PROBE_GP`).
 #[test]
 #[ignore]
 fn probe_geometries() {
@@ -192,9 +232,9 @@ fn probe_geometries() {
     let gp: Vec<(u32, u32)> = std::env::var("PROBE_GP")
         .unwrap_or_else(|_| "32:5,64:9".into())
         .split(',')
-        .map(|s| {
-            let (g, p) = s.split_once(':').unwrap();
-            (g.parse().unwrap(), p.parse().unwrap())
+        .filter_map(|s| {
+            let (g, p) = s.split_once(':')?;
+            Some((g.parse().ok()?, p.parse().ok()?))
         })
         .collect();
     for name in objs.split(',') {
@@ -224,10 +264,9 @@ fn probe_geometries() {
                 }
             }
             for (label, geo) in rows {
-                let t = std::time::Instant::now();
                 let pr = trained::gbuffer::probe(&field, s.sigma, &geo, p, &views).unwrap();
                 eprintln!(
-                    "{name} ({g}, {p}) {label:28}: {} quads, texel-point PSNR {:.2} dB (on rays that hit: {:.2}, surface point {:.2}), far {:.4}, covers {:.4} of {} object pixels ({:.2} s)",
+                    "{name} ({g}, {p}) {label:28}: {} quads, texel-point PSNR {:.2} dB (rays that hit: {:.2}, surface point {:.2}), far {:.4}, covers {:.4} of {} object pixels",
                     geo.quads.len(),
                     pr.psnr,
                     pr.hit_psnr,
@@ -235,59 +274,6 @@ fn probe_geometries() {
                     pr.far_pixels as f64 / pr.pixels as f64,
                     pr.pixels as f64 / pr.object_pixels as f64,
                     pr.object_pixels,
-                    t.elapsed().as_secs_f64()
-                );
-            }
-        }
-    }
-}
-
-/// Measurement (`-- --ignored --nocapture`): held-out quality of whole
-/// bakes with the geometry chosen by the `NERFLEX_*` variables of
-/// `extract::extract` (experiment only).
-#[test]
-#[ignore]
-fn bake_geometries() {
-    let tmp = tempfile::tempdir().unwrap();
-    let objs = std::env::var("PROBE_OBJECTS").unwrap_or_else(|_| "ball,mug,lattice".into());
-    let gp: Vec<(u32, u32)> = std::env::var("PROBE_GP")
-        .unwrap_or_else(|_| "32:5,64:9".into())
-        .split(',')
-        .map(|s| {
-            let (g, p) = s.split_once(':').unwrap();
-            (g.parse().unwrap(), p.parse().unwrap())
-        })
-        .collect();
-    let configs = std::env::var("PROBE_CONFIGS").unwrap_or_else(|_| "faces,0.5:0.5,1:1".into());
-    for name in objs.split(',') {
-        let kind = ObjectKind::from_name(name).unwrap();
-        let dir = capture(tmp.path(), kind, 96, 32);
-        let cap = Capture::load(&dir).unwrap();
-        let obj = ObjectViews::from_capture(&cap, None).unwrap();
-        let views = obj.bake_views();
-        let field = field_of(&cap);
-        for &(g, p) in &gp {
-            for c in configs.split(',') {
-                std::env::remove_var("NERFLEX_FACES");
-                if c == "faces" {
-                    std::env::set_var("NERFLEX_FACES", "1");
-                } else {
-                    let f: Vec<&str> = c.split(':').collect();
-                    std::env::set_var("NERFLEX_KEEP", f[0]);
-                    std::env::set_var("NERFLEX_GROW", f[1]);
-                    std::env::set_var("NERFLEX_SUB", f.get(2).copied().unwrap_or("4"));
-                }
-                let mut tp = TrainedParams::new(g, p);
-                tp.finetune.epochs = 3.0;
-                let tb = trained::bake(&field, &views, &tp).unwrap();
-                let st = tb.stats;
-                let a = tb.baked.into_asset().unwrap();
-                let bytes = bake::file_bytes(&a).unwrap();
-                let m = sweep::measure_views(&a, &obj.test, &sweep::fixed_point_render, None, false)
-                    .unwrap();
-                eprintln!(
-                    "{name} ({g}, {p}) {c:10}: {} quads kept, {} bytes, train PSNR {:.2} -> {:.2}, held-out PSNR {:.2} dB SSIM {:.4}, extract {:.2} s",
-                    st.kept_quads, bytes, st.finetune.psnr_before, st.finetune.psnr_after, m.mean.psnr, m.mean.ssim, st.times.extract_s
                 );
             }
         }
