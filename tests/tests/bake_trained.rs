@@ -214,7 +214,12 @@ fn surface_quads_cut_parallax_on_a_mug() {
     );
     // Texels more than a voxel from the surface point their pixel sees:
     // 11.8 % of the pixels on faces, 0.75 % on surface quads when written.
-    assert!(far(&ps) <= 0.25 * far(&pf), "far: {} vs {}", far(&ps), far(&pf));
+    assert!(
+        far(&ps) <= 0.25 * far(&pf),
+        "far: {} vs {}",
+        far(&ps),
+        far(&pf)
+    );
     // No coverage lost (cracks): 0.980 vs 0.994 when written.
     assert!(cover(&ps) >= cover(&pf) - 0.005);
     assert!(surf.quads.len() < faces.quads.len());

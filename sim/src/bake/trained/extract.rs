@@ -258,12 +258,7 @@ pub fn extract_voxel_faces(s: &Surface<'_>, g: u32, p: u32) -> Option<Geometry> 
 /// parallelogram over the cross-section), a texel opaque iff its line
 /// has such an entry. Slabs of neighbouring voxels share their end
 /// depths, so each crossing belongs to exactly one voxel along the axis.
-pub fn extract_with(
-    s: &Surface<'_>,
-    g: u32,
-    p: u32,
-    set: &SurfaceSettings,
-) -> Option<Geometry> {
+pub fn extract_with(s: &Surface<'_>, g: u32, p: u32, set: &SurfaceSettings) -> Option<Geometry> {
     let cube = object_cube(s)?;
     let grid = classify(s, &cube, g);
     let shell: Vec<[u32; 3]> = (0..g)
@@ -295,7 +290,11 @@ pub fn extract_with(
 /// (`from_high`) or the low end: the pair (outside sample, inside sample)
 /// of depth indices, if any.
 #[inline]
-fn first_entry(n: usize, from_high: bool, inside: impl Fn(usize) -> bool) -> Option<(usize, usize)> {
+fn first_entry(
+    n: usize,
+    from_high: bool,
+    inside: impl Fn(usize) -> bool,
+) -> Option<(usize, usize)> {
     let mut prev = None;
     for step in 0..n {
         let t = if from_high { n - 1 - step } else { step };
@@ -453,7 +452,9 @@ fn voxel_quads(
     let grow = set.grow.clamp(0.0, 1.0) * h;
     // Inside pattern of each lattice line along each axis (bit t = depth t).
     let column = |axis: usize, i1: usize, i2: usize| -> u64 {
-        (0..n).fold(0u64, |acc, t| acc | (u64::from(lat[idx(axis, t, i1, i2)]) << t))
+        (0..n).fold(0u64, |acc, t| {
+            acc | (u64::from(lat[idx(axis, t, i1, i2)]) << t)
+        })
     };
     let mut out = Vec::new();
     for (axis, cnt) in count.iter().enumerate() {
@@ -467,8 +468,7 @@ fn voxel_quads(
             let mut pts = Vec::with_capacity(n * n);
             for i2 in 0..n {
                 for i1 in 0..n {
-                    let Some((to, ti)) =
-                        first_entry(n, positive, |t| lat[idx(axis, t, i1, i2)])
+                    let Some((to, ti)) = first_entry(n, positive, |t| lat[idx(axis, t, i1, i2)])
                     else {
                         continue;
                     };
@@ -610,18 +610,26 @@ mod tests {
             extract(&s, 16, 5).expect("a sphere has an inside"),
             extract_voxel_faces(&s, 16, 5).expect("a sphere has an inside"),
         );
-        let mean_off = |rs: &[f32]| rs.iter().map(|r| (r - 0.6).abs()).sum::<f32>() / rs.len() as f32;
+        let mean_off =
+            |rs: &[f32]| rs.iter().map(|r| (r - 0.6).abs()).sum::<f32>() / rs.len() as f32;
         let (rs, rf) = (texel_radii(&surf, &f, 5), texel_radii(&faces, &f, 5));
         // Every opaque texel of the surface quads lies within 0.3 voxel of
         // the sphere (0.24 when written: a plane per voxel, grown by an
         // eighth of a voxel, its corners off a curved surface); the voxel
         // faces' lie up to a voxel deep.
         let worst = rs.iter().map(|r| (r - 0.6).abs()).fold(0.0f32, f32::max);
-        assert!(worst <= 0.3 * surf.voxel, "worst |r − R| {worst}, voxel {}", surf.voxel);
+        assert!(
+            worst <= 0.3 * surf.voxel,
+            "worst |r − R| {worst}, voxel {}",
+            surf.voxel
+        );
         let (ms, mf) = (mean_off(&rs), mean_off(&rf));
         // Mean |r − R| 0.0054 vs 0.0375 when written (the sphere's density
         // ramp is 0.01 wide).
-        assert!(ms * 4.0 < mf, "mean |r − R|: surface quads {ms}, voxel faces {mf}");
+        assert!(
+            ms * 4.0 < mf,
+            "mean |r − R|: surface quads {ms}, voxel faces {mf}"
+        );
         // Fewer quads, every one a parallelogram with a unit normal
         // facing out of the sphere (roughly: a voxel the surface crosses
         // along its axis from both sides has a quad for each side).
