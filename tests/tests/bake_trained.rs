@@ -213,7 +213,7 @@ fn surface_quads_cut_parallax_on_a_mug() {
         pf.psnr
     );
     // Texels more than a voxel from the surface point their pixel sees:
-    // 11.8 % of the pixels on faces, 0.75 % on surface quads when written.
+    // 11.8 % of the pixels on faces, 0.67 % on surface quads when written.
     assert!(
         far(&ps) <= 0.25 * far(&pf),
         "far: {} vs {}",
