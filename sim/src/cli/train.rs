@@ -74,6 +74,9 @@ pub struct Args {
     /// Total variation weight on the SH colour (0: off).
     #[arg(long, default_value_t = 1e-10)]
     pub tv_color: f32,
+    /// Apply the total variation every N steps (weights × N).
+    #[arg(long, default_value_t = 4)]
+    pub tv_every: u32,
     /// Every N steps, skip cells whose opacity stays below
     /// `--prune-opacity` (0: never).
     #[arg(long, default_value_t = 100)]
@@ -173,6 +176,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             tv_density: args.tv_density,
             tv_color: args.tv_color,
             prune_every: args.prune_every,
+            tv_every: args.tv_every,
             prune_opacity: args.prune_opacity,
             ..TrainSettings::default()
         };
