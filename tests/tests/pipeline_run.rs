@@ -7,13 +7,15 @@
 use nerflex_core::units::Bytes;
 use nerflex_sim::baselines::Method;
 use nerflex_sim::device::Device;
-use nerflex_sim::pipeline::{self, Input, Options, Quiet};
+use nerflex_sim::pipeline::{Baker, self, Input, Options, Quiet};
 use nerflex_sim::procedural::Preset;
 use nerflex_sim::simulate::{SimOptions, TurntableSpec};
 use std::path::Path;
 
 fn tiny(store: &Path) -> Options {
     let mut o = Options::reduced(store.to_path_buf());
+    // The hull baker: these tests check the pipeline's machinery, not training.
+    o.baker = Baker::Hull;
     o.size = 48;
     o.train_views = 6;
     o.test_views = 2;
