@@ -67,10 +67,10 @@ pub struct PipelineArgs {
     #[arg(long, value_parser = parse_baker, default_value = "trained")]
     pub baker: BakerName,
     /// The trained baker's training schedule, `RES:STEPS` comma-separated
-    /// [default: by the scale; run: 64:300,96:300].
+    /// [default: by the scale; run: 48:300].
     #[arg(long, value_delimiter = ',', value_parser = parse_level, value_name = "RES:STEPS")]
     pub train_levels: Vec<Level>,
-    /// Rays per training step [default: by the scale; run: 4096].
+    /// Rays per training step [default: by the scale; run: 2048].
     #[arg(long)]
     pub train_batch: Option<u32>,
     /// The trained baker's fine-tune passes over the training pixels
