@@ -84,15 +84,15 @@ impl Scale {
         // Measured choices and the reasons: docs/evaluation.md, "Training
         // budgets".
         let (levels, batch) = match self {
-            // Not measured at this size (the 2-core machine is shared; no
-            // 800-pixel training was run for this choice): one level at
-            // 128³, about as long as the lead's lego run's first level.
+            // Not measured at this size (no 800-pixel training was run for
+            // this choice): one 128³ level sized so that about 48 fields
+            // take about half an hour (docs/evaluation.md).
             Scale::Paper => (
                 vec![Level {
                     res: 128,
-                    iters: 800,
+                    iters: 400,
                 }],
-                8192,
+                4096,
             ),
             // 16 views of an enlarged network at 128–160 px: one 48³
             // level held out as well as 64³ → 96³ at a third of the time.
