@@ -93,7 +93,10 @@ fn the_field_store_trains_once_then_loads() {
     let second = store.get_or_train(&views, &settings, &count).unwrap();
     assert!(!second.trained_now);
     assert_eq!(second.train_s, 0.0);
-    assert_eq!(calls.load(std::sync::atomic::Ordering::Relaxed), trained_calls);
+    assert_eq!(
+        calls.load(std::sync::atomic::Ordering::Relaxed),
+        trained_calls
+    );
     assert_eq!(*second.grid, *first.grid);
     assert_eq!(second.key, first.key);
     assert_eq!(
@@ -136,7 +139,8 @@ fn hull_and_trained_bakes_never_share_a_key() {
     let Baker::Trained(t) = tiny_baker() else {
         unreachable!()
     };
-    let other_field = BakeStore::with_baker(&root, Baker::trained(tiny_training(41), t.bake.clone()));
+    let other_field =
+        BakeStore::with_baker(&root, Baker::trained(tiny_training(41), t.bake.clone()));
     let mut bake = t.bake.clone();
     bake.finetune.epochs = 2.0;
     let other_bake = BakeStore::with_baker(&root, Baker::trained(t.train.clone(), bake));
@@ -242,4 +246,52 @@ fn a_trained_run_bakes_from_fields_and_says_so() {
     assert_eq!(h.baker, "hull");
     assert_eq!(h.sample_bakes.1, 0, "a hull run reused trained bakes");
     assert_eq!(h.times.train_s, 0.0);
+}
+
+#[test]
+fn a_trained_evaluation_names_its_baker_and_what_it_substitutes() {
+    use nerflex_sim::eval::{self, EvalOptions};
+    use nerflex_sim::procedural::Preset;
+    let dir = tempfile::tempdir().unwrap();
+    let mut p = tiny_options(&dir.path().join("bakes"));
+    p.size = 48;
+    p.train_views = 6;
+    p.test_views = 3;
+    let opts = EvalOptions {
+        pipeline: p,
+        scenes: vec![Preset::Scene1],
+        devices: vec![Device::builtin("pixel4").unwrap()],
+        real: vec![],
+        real_size: 64,
+        fps_scene: Preset::Scene1,
+    };
+    let out = dir.path().join("eval");
+    let report = eval::run(&opts, &out, None, &Quiet).unwrap();
+    assert_eq!(report.baker, "trained");
+    let baker = report
+        .settings
+        .iter()
+        .find(|(k, _)| k == "baker")
+        .map(|(_, v)| v.as_str())
+        .unwrap_or("");
+    assert!(
+        baker.starts_with("trained: fields 16³ × 40 steps → 24³ × 40 steps"),
+        "{baker}"
+    );
+    // Every method's row was measured on trained bakes; the fields of
+    // Single-NeRF (1), Block-NeRF (one per object) and the networks are in
+    // the store.
+    let s = &report.scenes[0];
+    assert!(s.rows.iter().any(|r| r.quality.is_some()));
+    let fields = std::fs::read_dir(dir.path().join("bakes/fields"))
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .is_ok_and(|e| e.path().extension().is_some_and(|x| x == "safetensors"))
+        })
+        .count();
+    assert_eq!(fields, 1 + 5 + s.networks.len(), "{:?}", s.networks);
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("the trained baker"), "no substitution line");
+    assert!(!md.contains("visual-hull bakes (no trained field)"));
 }

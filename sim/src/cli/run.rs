@@ -8,9 +8,9 @@ use crate::device::Device;
 use crate::eval::scale::{Scale, Sizes};
 use crate::metrics::Lpips;
 use crate::pipeline::{self, Baker, Input, Options, Progress};
-use crate::train::trainer::Level;
 use crate::procedural::Preset;
 use crate::simulate::{self, SimOptions};
+use crate::train::trainer::Level;
 use anyhow::{bail, Context as _};
 use nerflex_core::units::Bytes;
 use std::path::{Path, PathBuf};
@@ -123,9 +123,8 @@ impl PipelineArgs {
     /// The baker the flags choose, with `scale`'s settings where no flag
     /// overrides them.
     fn baker_at(&self, scale: Scale) -> anyhow::Result<Baker> {
-        let trained_flags = !self.train_levels.is_empty()
-            || self.train_batch.is_some()
-            || self.epochs.is_some();
+        let trained_flags =
+            !self.train_levels.is_empty() || self.train_batch.is_some() || self.epochs.is_some();
         match self.baker {
             BakerName::Hull if trained_flags => bail!(
                 "--train-levels, --train-batch and --epochs are for --baker trained, not --baker hull"

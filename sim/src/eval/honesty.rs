@@ -49,7 +49,8 @@ pub fn substitutions(r: &EvalReport) -> Vec<Substitution> {
             paper: "MobileNeRF networks trained for hours on GPUs, then baked",
             ours: "the visual-hull baker (`nerflex bake`): carved silhouettes, view-averaged colour, an analytic MLP".into(),
             may_change: "quality saturates at the hull's ceiling, so the methods' quality differences shrink (Single-NeRF, Block-NeRF and NeRFlex land within a few thousandths of SSIM); sizes follow the hull's surface, not a trained mesh",
-        });    } else {
+        });
+    } else {
         v.push(Substitution {
             paper: "MobileNeRF networks trained for hours on GPUs, then baked",
             ours: "the trained baker: a sparse-voxel radiance field trained on the CPU for minutes per network (`nerflex train`, schedule in the settings above), its surface extracted onto voxel faces and the atlas and MLP fine-tuned through the phone's shader (`docs/baking.md`)".into(),

@@ -202,12 +202,14 @@ impl BakeStore {
             progress.note(&format!("training the field of {}", obj.name));
         }
         let name = obj.name.as_str();
-        let field = self.fields.get_or_train(obj, &t.train, &|level, step, steps, psnr| {
-            progress.note(&format!(
-                "training {name}: level {} step {step}/{steps}, batch PSNR {psnr:.2} dB",
-                level + 1
-            ));
-        })?;
+        let field = self
+            .fields
+            .get_or_train(obj, &t.train, &|level, step, steps, psnr| {
+                progress.note(&format!(
+                    "training {name}: level {} step {step}/{steps}, batch PSNR {psnr:.2} dB",
+                    level + 1
+                ));
+            })?;
         if let Ok(mut last) = self.last_field.lock() {
             *last = Some(field.clone());
         }
@@ -264,15 +266,19 @@ impl BakeStore {
             }
             Some((_, params)) => {
                 let field = self.field(obj, progress)?;
-                progress.note(&format!("baking {} at g={g} p={p} from its field", obj.name));
+                progress.note(&format!(
+                    "baking {} at g={g} p={p} from its field",
+                    obj.name
+                ));
                 let views = obj.bake_views();
-                let tb = trained::bake(field.grid.as_ref(), &views, &params).with_context(|| {
-                    format!(
-                        "baking {} at g={g} p={p} from its field {}",
-                        obj.name,
-                        field.path.display()
-                    )
-                })?;
+                let tb =
+                    trained::bake(field.grid.as_ref(), &views, &params).with_context(|| {
+                        format!(
+                            "baking {} at g={g} p={p} from its field {}",
+                            obj.name,
+                            field.path.display()
+                        )
+                    })?;
                 let details = trained_details(&tb.stats, &field);
                 let field_s = (field.train_s, field.load_s);
                 (tb.baked, Some(details), field_s, field.trained_now)
