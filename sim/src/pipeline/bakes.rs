@@ -99,13 +99,24 @@ impl Baked {
 
 /// The folder of kept bakes (and, for the trained baker, of the fields
 /// they come from).
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct BakeStore {
     root: PathBuf,
     baker: Baker,
     fields: FieldStore,
     /// The last field used, so the sample bakes of one network load it once.
     last_field: Arc<Mutex<Option<StoredField>>>,
+}
+
+impl std::fmt::Debug for BakeStore {
+    // Not the field in memory (millions of values).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("BakeStore")
+            .field("root", &self.root)
+            .field("baker", &self.baker)
+            .field("fields", &self.fields)
+            .finish_non_exhaustive()
+    }
 }
 
 impl BakeStore {

@@ -29,7 +29,7 @@ use std::time::Instant;
 pub const FIELD_KEY_VERSION: u32 = 1;
 
 /// A field from the store.
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct StoredField {
     /// Its key (the file's stem).
     pub key: String,
@@ -45,6 +45,21 @@ pub struct StoredField {
     pub train_s: f64,
     /// Seconds this call spent loading it (0 when trained).
     pub load_s: f64,
+}
+
+impl std::fmt::Debug for StoredField {
+    // The grid's size, not its values.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("StoredField")
+            .field("key", &self.key)
+            .field("path", &self.path)
+            .field("res", &self.grid.res)
+            .field("slots", &self.grid.slots())
+            .field("trained_now", &self.trained_now)
+            .field("train_s", &self.train_s)
+            .field("load_s", &self.load_s)
+            .finish_non_exhaustive()
+    }
 }
 
 /// Called while a field trains with (level, step, steps in level, batch PSNR).
