@@ -12,6 +12,7 @@ pub mod march;
 pub mod pixels;
 pub mod sh;
 pub mod trainer;
+pub mod tv;
 pub mod view;
 
 /// Loads a field saved by `nerflex train` (errors name the file).

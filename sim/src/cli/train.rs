@@ -47,7 +47,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0.5)]
     pub lr_density: f32,
     /// Adam learning rate of the SH colour.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.3)]
     pub lr_color: f32,
     /// Seed of the ray draws.
     #[arg(long, default_value_t = 0)]
@@ -58,6 +58,22 @@ pub struct Args {
     /// Factor the learning rates decay to by the end of each level.
     #[arg(long, default_value_t = 0.1)]
     pub lr_final: f32,
+    /// Weight of the per-sample colour loss (DVGO's `rgbper`; 0: off).
+    #[arg(long, default_value_t = 0.01)]
+    pub rgbper: f32,
+    /// Weight of the entropy of each ray's final transmittance (DVGO's
+    /// `entropy_last`; 0: off).
+    #[arg(long, default_value_t = 0.001)]
+    pub entropy: f32,
+    /// Samples of smaller weight pass no gradient (0: all do).
+    #[arg(long, default_value_t = 1e-4)]
+    pub skip_weight: f32,
+    /// Total variation weight on the raw density (0: off).
+    #[arg(long, default_value_t = 0.0)]
+    pub tv_density: f32,
+    /// Total variation weight on the SH colour (0: off).
+    #[arg(long, default_value_t = 0.0)]
+    pub tv_color: f32,
     /// Use only the first N training views.
     #[arg(long)]
     pub max_views: Option<usize>,
@@ -144,6 +160,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             seed: args.seed,
             patch: args.patch,
             lr_final: args.lr_final,
+            rgbper: args.rgbper,
+            entropy: args.entropy,
+            skip_weight: args.skip_weight,
+            tv_density: args.tv_density,
+            tv_color: args.tv_color,
             ..TrainSettings::default()
         };
         settings

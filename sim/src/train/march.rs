@@ -255,16 +255,14 @@ fn forward<const S: usize, const K: usize>(
     out
 }
 
-/// A worker's gradient accumulator: dense over slots, with the list of
-/// slots it touched so merging and clearing cost only what was used.
+/// A worker's gradient accumulator: dense over slots, with a touched
+/// flag per slot so the optimiser reads and zeroes only what was used.
 #[derive(Debug, Default)]
 pub struct GradBuf {
     /// Gradients, `slots × record_len` floats.
     pub grad: Vec<f32>,
-    /// Whether a slot was touched since the last clear.
+    /// Whether a slot was touched since the optimiser last read it.
     pub mark: Vec<bool>,
-    /// The touched slots.
-    pub touched: Vec<u32>,
 }
 
 impl GradBuf {
@@ -273,18 +271,7 @@ impl GradBuf {
         GradBuf {
             grad: vec![0.0; slots * len],
             mark: vec![false; slots],
-            touched: Vec::new(),
         }
-    }
-
-    /// Zeroes what was touched.
-    pub fn clear(&mut self, len: usize) {
-        for &s in &self.touched {
-            let s = s as usize;
-            self.grad[s * len..(s + 1) * len].fill(0.0);
-            self.mark[s] = false;
-        }
-        self.touched.clear();
     }
 
     #[inline(always)]
@@ -300,10 +287,7 @@ impl GradBuf {
                 continue;
             };
             if let Some(m) = self.mark.get_mut(s as usize) {
-                if !*m {
-                    *m = true;
-                    self.touched.push(s);
-                }
+                *m = true;
             }
             let w = corners.weight[c];
             for i in 0..S {
@@ -313,8 +297,27 @@ impl GradBuf {
     }
 }
 
+/// What a training ray adds beyond its colour loss: the weights of the
+/// per-ray regularisers (DVGO's), each relative to the colour loss of one
+/// ray, and which samples pass gradients at all.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RayLoss {
+    /// Samples whose weight wᵢ is below this pass no gradient (DVGO's
+    /// `fast_color_thres`): most samples of a ray lie in near-empty space
+    /// or behind the surface, and their scatter is most of the cost.
+    pub skip_weight: f32,
+    /// Per-sample colour loss `Σᵢ wᵢ‖cᵢ − target‖²` with the weights held
+    /// fixed: every sample that shows must have the pixel's colour, which
+    /// keeps colour from being spread over a thick shell.
+    pub rgbper: f32,
+    /// Binary entropy of the ray's final transmittance: a ray ends either
+    /// on the object or in the background, never in haze.
+    pub entropy: f32,
+}
+
 /// Renders one ray, compares it with `target` and adds the gradient of
-/// `loss_scale · ‖C − target‖²` to `grads`. Returns the ray's colour.
+/// `loss_scale · (‖C − target‖² + 3·reg)` to `grads`, where `reg` is the
+/// weighted regularisers. Returns the ray's colour.
 #[allow(clippy::too_many_arguments)]
 pub fn train_ray(
     grid: &SparseGrid,
@@ -323,13 +326,23 @@ pub fn train_ray(
     p: &MarchParams,
     target: Vec3,
     loss_scale: f32,
+    reg: &RayLoss,
     scratch: &mut Scratch,
     grads: &mut GradBuf,
 ) -> RayOut {
     with_layout!(
         grid,
-        train_ray_k(grid, bx, ray, p, target, loss_scale, scratch, grads)
+        train_ray_k(grid, bx, ray, p, target, loss_scale, reg, scratch, grads)
     )
+}
+
+/// Clamp of the transmittance inside the entropy's logarithms.
+const ENTROPY_EPS: f32 = 1e-6;
+
+/// Binary entropy of the transmittance `t` (natural log), clamped.
+pub fn entropy(t: f32) -> f32 {
+    let t = t.clamp(ENTROPY_EPS, 1.0 - ENTROPY_EPS);
+    -(t * t.ln() + (1.0 - t) * (1.0 - t).ln())
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -340,6 +353,7 @@ fn train_ray_k<const S: usize, const K: usize>(
     p: &MarchParams,
     target: Vec3,
     loss_scale: f32,
+    reg: &RayLoss,
     scratch: &mut Scratch,
     grads: &mut GradBuf,
 ) -> RayOut {
@@ -350,17 +364,31 @@ fn train_ray_k<const S: usize, const K: usize>(
 
     // Backward.
     let g_c = 2.0 * loss_scale * (total - target);
+    // The regularisers are per ray; the colour loss is per channel.
+    let reg_scale = 3.0 * loss_scale;
+    // ∂H(T_end)/∂τᵢ = H'(T_end)·(−T_end) for every sample i.
+    let t_end = out.transmittance;
+    let d_tau_entropy = if reg.entropy > 0.0 && (ENTROPY_EPS..1.0 - ENTROPY_EPS).contains(&t_end) {
+        -reg.entropy * reg_scale * ((1.0 - t_end) / t_end).ln() * t_end
+    } else {
+        0.0
+    };
+    let g_per = 2.0 * reg.rgbper * reg_scale;
     let mut before = Vec3::ZERO; // Σ_{j≤i} wⱼ cⱼ
     for s in &scratch.samples {
         let rgb = Vec3::from_array(s.rgb);
         before += s.w * rgb;
+        if s.w < reg.skip_weight {
+            continue;
+        }
         let rest = total - before;
-        let d_tau = g_c.dot(s.t_after * rgb - rest);
+        let d_tau = g_c.dot(s.t_after * rgb - rest) + d_tau_entropy;
         let mut gv = [0.0f32; S];
         gv[0] = d_tau * s.dtau_draw;
         for ch in 0..3 {
             let c = s.rgb[ch];
-            let d_pre = s.w * g_c[ch] * c * (1.0 - c);
+            let d_c = s.w * (g_c[ch] + g_per * (c - target[ch]));
+            let d_pre = d_c * c * (1.0 - c);
             for k in 0..K {
                 gv[1 + ch * K + k] = d_pre * basis[k];
             }
@@ -401,6 +429,114 @@ mod tests {
         f64::from((c - target).length_squared())
     }
 
+    /// The samples' (weight, colour) of a ray.
+    fn samples_of(grid: &SparseGrid, ray: &GridRay, p: &MarchParams) -> (Vec<(f32, Vec3)>, f32) {
+        let mut v = Vec::new();
+        let out = with_layout!(grid, forward_collect(grid, ray, p, &mut v));
+        (v, out.transmittance)
+    }
+
+    fn forward_collect<const S: usize, const K: usize>(
+        grid: &SparseGrid,
+        ray: &GridRay,
+        p: &MarchParams,
+        v: &mut Vec<(f32, Vec3)>,
+    ) -> RayOut {
+        forward::<S, K>(grid, &MarchBox::of(grid), ray, p, |s| {
+            v.push((s.w, Vec3::from_array(s.rgb)))
+        })
+    }
+
+    /// The regularised loss with the per-sample weights of `fixed_w`
+    /// held (the gradient treats them as constants).
+    fn reg_loss(
+        grid: &SparseGrid,
+        ray: &GridRay,
+        p: &MarchParams,
+        target: Vec3,
+        reg: &RayLoss,
+        fixed_w: &[f32],
+    ) -> f64 {
+        let (samples, t_end) = samples_of(grid, ray, p);
+        assert_eq!(samples.len(), fixed_w.len());
+        let per: f32 = samples
+            .iter()
+            .zip(fixed_w)
+            .map(|((_, c), w)| w * (*c - target).length_squared())
+            .sum();
+        loss(grid, ray, p, target)
+            + 3.0 * f64::from(reg.rgbper * per + reg.entropy * entropy(t_end))
+    }
+
+    /// Finite differences of the regularised loss (weights of the
+    /// per-sample term held, as the backward pass holds them).
+    #[test]
+    fn regularisers_match_finite_differences() {
+        let grid = random_grid(1, 11);
+        let bx = MarchBox::of(&grid);
+        let p = MarchParams {
+            step: 0.41,
+            background: Vec3::ONE,
+        };
+        let ray = GridRay {
+            origin: Vec3::new(-0.5, 0.25, 0.3),
+            dir: Vec3::new(1.0, 0.5, 0.35).normalize(),
+            jitter: 0.6,
+        };
+        // Lower densities: the ray must end partly transparent for the
+        // entropy to have a gradient.
+        let mut grid = grid;
+        let len = grid.record_len();
+        for s in 0..grid.slots() {
+            grid.values[s * len] -= 3.0;
+        }
+        let target = Vec3::new(0.3, 0.5, 0.9);
+        let reg = RayLoss {
+            rgbper: 0.7,
+            entropy: 0.4,
+            skip_weight: 0.0,
+        };
+        let (base, t_end) = samples_of(&grid, &ray, &p);
+        assert!((0.05..0.95).contains(&t_end), "T_end {t_end}");
+        let fixed_w: Vec<f32> = base.iter().map(|s| s.0).collect();
+        let mut scratch = Scratch::default();
+        let mut grads = GradBuf::new(grid.slots(), len);
+        train_ray(
+            &grid,
+            &bx,
+            &ray,
+            &p,
+            target,
+            1.0,
+            &reg,
+            &mut scratch,
+            &mut grads,
+        );
+        let mut checked = 0;
+        for i in 0..grid.values.len() {
+            let h = 1e-2;
+            let mut a = grid.clone();
+            a.values[i] += h;
+            let mut b = grid.clone();
+            b.values[i] -= h;
+            // The held weights: the density's own gradient goes through
+            // the colour and entropy terms only, so perturbing a density
+            // must keep the unperturbed weights in the per-sample term.
+            let fd = (reg_loss(&a, &ray, &p, target, &reg, &fixed_w)
+                - reg_loss(&b, &ray, &p, target, &reg, &fixed_w))
+                / (2.0 * f64::from(h));
+            let an = f64::from(grads.grad[i]);
+            assert!(
+                (fd - an).abs() <= 2e-3 + 2e-2 * fd.abs().max(an.abs()),
+                "value {i}: analytic {an}, finite difference {fd}"
+            );
+            if an.abs() > 1e-4 {
+                checked += 1;
+            }
+        }
+        assert!(checked > 20, "only {checked} non-trivial gradients");
+    }
+
     /// Finite differences of the loss against every stored value.
     #[test]
     fn backward_matches_finite_differences() {
@@ -419,7 +555,17 @@ mod tests {
             let target = Vec3::new(0.2, 0.6, 0.4);
             let mut scratch = Scratch::default();
             let mut grads = GradBuf::new(grid.slots(), grid.record_len());
-            let out = train_ray(&grid, &bx, &ray, &p, target, 1.0, &mut scratch, &mut grads);
+            let out = train_ray(
+                &grid,
+                &bx,
+                &ray,
+                &p,
+                target,
+                1.0,
+                &RayLoss::default(),
+                &mut scratch,
+                &mut grads,
+            );
             assert!(out.samples > 5);
             let mut checked = 0;
             for i in 0..grid.values.len() {

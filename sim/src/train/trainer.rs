@@ -11,8 +11,9 @@ use rayon::prelude::*;
 
 use super::adam::Adam;
 use super::grid::{activate_density, SparseGrid};
-use super::march::{self, GradBuf, GridRay, MarchBox, MarchParams, Scratch};
+use super::march::{self, GradBuf, GridRay, MarchBox, MarchParams, RayLoss, Scratch};
 use super::pixels::{box_corners, PixelRay, PixelSet};
+use super::tv::{self, Neighbours, TvWeights};
 use crate::bake::carve::{self, Silhouettes, VoxelTest};
 use crate::bake::sweep::ObjectViews;
 use crate::bake::Aabb;
@@ -52,6 +53,24 @@ pub struct TrainSettings {
     pub patch: u32,
     /// Seed of the ray draws.
     pub seed: u64,
+    /// Weight of the per-sample colour loss (DVGO's `rgbper`).
+    #[serde(default)]
+    pub rgbper: f32,
+    /// Samples of smaller weight pass no gradient (DVGO's
+    /// `fast_color_thres`).
+    #[serde(default)]
+    pub skip_weight: f32,
+    /// Total variation of the raw density over lattice edges
+    /// (`train::tv`).
+    #[serde(default)]
+    pub tv_density: f32,
+    /// Total variation of the SH coefficients.
+    #[serde(default)]
+    pub tv_color: f32,
+    /// Weight of the entropy of each ray's final transmittance (DVGO's
+    /// `entropy_last`).
+    #[serde(default)]
+    pub entropy: f32,
 }
 
 impl Default for TrainSettings {
@@ -70,12 +89,17 @@ impl Default for TrainSettings {
             batch: 8192,
             sh_degree: 1,
             lr_density: 0.5,
-            lr_color: 0.05,
+            lr_color: 0.3,
             lr_final: 0.1,
             step: 0.5,
             keep_opacity: 0.002,
             patch: 1,
             seed: 0,
+            rgbper: 0.01,
+            entropy: 0.001,
+            skip_weight: 1e-4,
+            tv_density: 0.0,
+            tv_color: 0.0,
         }
     }
 }
@@ -117,6 +141,17 @@ impl TrainSettings {
         for (name, v) in positive {
             if !(v.is_finite() && v > 0.0) {
                 return Err(format!("{name} must be finite and positive (got {v})"));
+            }
+        }
+        for (name, v) in [
+            ("rgbper", self.rgbper),
+            ("entropy", self.entropy),
+            ("skip_weight", self.skip_weight),
+            ("tv_density", self.tv_density),
+            ("tv_color", self.tv_color),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("{name} must be finite and not negative (got {v})"));
             }
         }
         if !(self.keep_opacity.is_finite() && (0.0..1.0).contains(&self.keep_opacity)) {
@@ -287,6 +322,20 @@ pub fn train(
         let bx = MarchBox::of(&grid);
         let per_worker = (settings.batch as usize).div_ceil(workers_n);
         let loss_scale = 1.0 / (3.0 * (per_worker * workers_n) as f32);
+        let reg = RayLoss {
+            rgbper: settings.rgbper,
+            entropy: settings.entropy,
+            skip_weight: settings.skip_weight,
+        };
+        let tv_w = TvWeights {
+            density: settings.tv_density,
+            color: settings.tv_color,
+        };
+        let neighbours = if tv_w.is_off() {
+            Neighbours::default()
+        } else {
+            Neighbours::of(&grid)
+        };
         let (mut sse_acc, mut n_acc) = (0.0f64, 0u64);
         for it in 0..level.iters {
             let frac = it as f32 / level.iters.max(1) as f32;
@@ -317,7 +366,7 @@ pub fn train(
                     for (_, ray, target) in &rays {
                         let (ray, px_target) = (*ray, *target);
                         let out = march::train_ray(
-                            g, &bx, &ray, &params, px_target, loss_scale, scratch, grads,
+                            g, &bx, &ray, &params, px_target, loss_scale, &reg, scratch, grads,
                         );
                         sse += f64::from((out.rgb - px_target).length_squared());
                         samples += u64::from(out.samples);
@@ -326,6 +375,7 @@ pub fn train(
                 })
                 .reduce(|| (0.0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
             report.samples += samples;
+            tv::add_grad(&grid.values, len, &neighbours, tv_w, &mut grads);
             adam.step(
                 &mut grid.values,
                 len,
