@@ -381,7 +381,8 @@ mod tests {
             (&["--baker", "hull", "--epochs", "1"][..], "--baker hull"),
             (&["--train-levels", "64"][..], "RES:STEPS"),
             (&["--train-levels", "64:10,32:10"][..], "--train-levels"),
-            (&["--epochs", "-1"][..], "--epochs"),
+            (&["--epochs=-1"][..], "--epochs"),
+            (&["--epochs", "inf"][..], "--epochs"),
         ] {
             let e = options(flags).err().unwrap();
             assert!(format!("{e:#}").contains(name), "{flags:?}: {e:#}");
