@@ -179,3 +179,108 @@ fn the_export_round_trips_and_the_renderer_reproduces_the_finetune_shader() {
         report.psnr_after
     );
 }
+
+#[test]
+fn surface_quads_cut_parallax_on_a_mug() {
+    use trained::extract;
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = capture(tmp.path(), ObjectKind::Mug, 96, 32);
+    let cap = Capture::load(&dir).unwrap();
+    let obj = ObjectViews::from_capture(&cap, None).unwrap();
+    let views = obj.bake_views();
+    let field = field_of(&cap);
+    let s = extract::Surface::new(&field, 0.05);
+    let (g, p) = (32, 5);
+    let faces = extract::extract_voxel_faces(&s, g, p).unwrap();
+    let surf = extract::extract(&s, g, p).unwrap();
+    let probe = |geo| trained::gbuffer::probe(&field, s.sigma, geo, p, &views).unwrap();
+    let (pf, ps) = (probe(&faces), probe(&surf));
+    let far = |r: &trained::gbuffer::TexelProbe| r.far_pixels as f64 / r.pixels as f64;
+    let cover = |r: &trained::gbuffer::TexelProbe| r.pixels as f64 / r.object_pixels as f64;
+    eprintln!(
+        "voxel faces: {} quads, {pf:?}\nsurface quads: {} quads, {ps:?}",
+        faces.quads.len(),
+        surf.quads.len()
+    );
+    // The field's own colour at the texel each training pixel shows,
+    // against the pixel: 17.85 dB on voxel faces, 21.44 dB on surface
+    // quads when written (ceiling, the colour where each pixel's ray
+    // meets the surface: 22.9 dB); the margin asked is 2 dB.
+    assert!(
+        ps.psnr >= pf.psnr + 2.0,
+        "texel-point PSNR: surface {:.2} dB vs faces {:.2} dB",
+        ps.psnr,
+        pf.psnr
+    );
+    // Texels more than a voxel from the surface point their pixel sees:
+    // 11.8 % of the pixels on faces, 0.67 % on surface quads when written.
+    assert!(
+        far(&ps) <= 0.25 * far(&pf),
+        "far: {} vs {}",
+        far(&ps),
+        far(&pf)
+    );
+    // No coverage lost (cracks): 0.980 vs 0.994 when written.
+    assert!(cover(&ps) >= cover(&pf) - 0.005);
+    assert!(surf.quads.len() < faces.quads.len());
+}
+
+/// Measurement, not a check (`-- --ignored --nocapture`): the texel probe
+/// (`gbuffer::probe`) of the voxel-face geometry and of surface quads at
+/// several settings, on built-in objects (`PROBE_OBJECTS`, `PROBE_GP`).
+#[test]
+#[ignore]
+fn probe_geometries() {
+    use trained::extract::{self, SurfaceSettings};
+    let tmp = tempfile::tempdir().unwrap();
+    let objs = std::env::var("PROBE_OBJECTS").unwrap_or_else(|_| "ball,mug,lattice".into());
+    let gp: Vec<(u32, u32)> = std::env::var("PROBE_GP")
+        .unwrap_or_else(|_| "32:5,64:9".into())
+        .split(',')
+        .filter_map(|s| {
+            let (g, p) = s.split_once(':')?;
+            Some((g.parse().ok()?, p.parse().ok()?))
+        })
+        .collect();
+    for name in objs.split(',') {
+        let kind = ObjectKind::from_name(name).unwrap();
+        let dir = capture(tmp.path(), kind, 96, 32);
+        let cap = Capture::load(&dir).unwrap();
+        let obj = ObjectViews::from_capture(&cap, None).unwrap();
+        let views = obj.bake_views();
+        let field = field_of(&cap);
+        let s = extract::Surface::new(&field, 0.05);
+        for &(g, p) in &gp {
+            let mut rows: Vec<(String, extract::Geometry)> = vec![(
+                "voxel faces".into(),
+                extract::extract_voxel_faces(&s, g, p).unwrap(),
+            )];
+            for keep in [1.0, 0.5] {
+                for grow in [0.0, 0.0625, 0.125, 0.25] {
+                    let set = SurfaceSettings {
+                        keep,
+                        grow,
+                        ..SurfaceSettings::default()
+                    };
+                    rows.push((
+                        format!("surface keep {keep} grow {grow}"),
+                        extract::extract_with(&s, g, p, &set).unwrap(),
+                    ));
+                }
+            }
+            for (label, geo) in rows {
+                let pr = trained::gbuffer::probe(&field, s.sigma, &geo, p, &views).unwrap();
+                eprintln!(
+                    "{name} ({g}, {p}) {label:28}: {} quads, texel-point PSNR {:.2} dB (rays that hit: {:.2}, surface point {:.2}), far {:.4}, covers {:.4} of {} object pixels",
+                    geo.quads.len(),
+                    pr.psnr,
+                    pr.hit_psnr,
+                    pr.surface_psnr,
+                    pr.far_pixels as f64 / pr.pixels as f64,
+                    pr.pixels as f64 / pr.object_pixels as f64,
+                    pr.object_pixels,
+                );
+            }
+        }
+    }
+}

@@ -40,9 +40,11 @@ fn capture(dir: &Path) -> PathBuf {
 }
 
 /// Held-out PSNR margin of the field over the hull baker (dB). Measured
-/// when this was written: field 26.37 dB vs hull baker 25.05 dB (+1.3 dB,
+/// with the default settings of session 4 (colour lr 0.3, DVGO's
+/// per-sample and entropy losses, TV, pruning): field 27.08 dB vs hull
+/// baker 25.05 dB (+2.0 dB; +1.3 dB before those changes,
 /// `docs/training.md`); the margin leaves room for float-order noise.
-const MARGIN_DB: f64 = 0.8;
+const MARGIN_DB: f64 = 1.5;
 
 #[test]
 fn trained_field_beats_the_hull_baker_and_round_trips() {

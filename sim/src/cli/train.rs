@@ -35,7 +35,7 @@ pub struct Args {
     #[arg(long)]
     pub renders: Option<PathBuf>,
     /// Coarse-to-fine schedule, `RES:STEPS` comma-separated.
-    #[arg(long, value_delimiter = ',', value_parser = parse_level, default_value = "128:1500,256:3000")]
+    #[arg(long, value_delimiter = ',', value_parser = parse_level, default_value = "128:1000,256:2000")]
     pub levels: Vec<Level>,
     /// Rays per optimisation step.
     #[arg(long, default_value_t = 8192)]
@@ -69,11 +69,18 @@ pub struct Args {
     #[arg(long, default_value_t = 1e-4)]
     pub skip_weight: f32,
     /// Total variation weight on the raw density (0: off).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 1e-10)]
     pub tv_density: f32,
     /// Total variation weight on the SH colour (0: off).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 1e-10)]
     pub tv_color: f32,
+    /// Every N steps, skip cells whose opacity stays below
+    /// `--prune-opacity` (0: never).
+    #[arg(long, default_value_t = 100)]
+    pub prune_every: u32,
+    /// See `--prune-every`.
+    #[arg(long, default_value_t = 1e-3)]
+    pub prune_opacity: f32,
     /// Use only the first N training views.
     #[arg(long)]
     pub max_views: Option<usize>,
@@ -165,6 +172,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             skip_weight: args.skip_weight,
             tv_density: args.tv_density,
             tv_color: args.tv_color,
+            prune_every: args.prune_every,
+            prune_opacity: args.prune_opacity,
             ..TrainSettings::default()
         };
         settings
@@ -200,8 +209,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             println!("level {res}³: {slots} stored vertices, {s:.1} s");
         }
         println!(
-            "total {:.1} s, {:.2} M samples ({:.2} M samples/s)",
+            "total {:.1} s ({:.1} s in the optimiser's grid passes), {:.2} M samples ({:.2} M samples/s)",
             report.total_s,
+            report.optimiser_s,
             report.samples as f64 / 1e6,
             report.samples as f64 / 1e6 / report.total_s.max(1e-9)
         );

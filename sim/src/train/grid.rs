@@ -151,6 +151,58 @@ impl SparseGrid {
         self.cell_bits = bits;
     }
 
+    /// Clears the occupancy bit of every cell whose eight corners are all
+    /// so thin that the cell's opacity stays below `alpha` (the densest
+    /// corner decides): the march then skips it without a gather. A pruned
+    /// cell gets no gradient again, so this is for space the optimisation
+    /// has already emptied (DVGO's mask cache, Plenoxels' pruning).
+    /// Returns the cells cleared.
+    pub fn prune_cells(&mut self, alpha: f32) -> usize {
+        let r = self.res as usize;
+        let n = r + 1;
+        let len = self.record_len();
+        let tau_cell = self.density_scale() * self.voxel();
+        // raw below which a corner's opacity over one cell stays under alpha.
+        let tau_max = -(1.0 - alpha.clamp(0.0, 0.999_999)).ln() / tau_cell;
+        let (index, values) = (&self.index, &self.values);
+        let raw = |v: usize| match index.get(v) {
+            Some(&s) if s != EMPTY => values.get(s as usize * len).copied(),
+            _ => None,
+        };
+        use rayon::prelude::*;
+        let cleared: usize = self
+            .cell_bits
+            .par_iter_mut()
+            .enumerate()
+            .map(|(w, bits)| {
+                let mut out = 0;
+                let mut b = *bits;
+                while b != 0 {
+                    let bit = b.trailing_zeros() as usize;
+                    b &= b - 1;
+                    let c = w * 64 + bit;
+                    let (i, j, k) = (c % r, (c / r) % r, c / (r * r));
+                    let base = (k * n + j) * n + i;
+                    let offs = [0, 1, n, n + 1, n * n, n * n + 1, n * n + n, n * n + n + 1];
+                    let thin = offs
+                        .iter()
+                        .all(|o| raw(base + o).is_none_or(|x| activate_density(x).0 < tau_max));
+                    if thin {
+                        *bits &= !(1u64 << bit);
+                        out += 1;
+                    }
+                }
+                out
+            })
+            .sum();
+        cleared
+    }
+
+    /// Cells whose occupancy bit is set.
+    pub fn occupied_cells(&self) -> usize {
+        self.cell_bits.iter().map(|b| b.count_ones() as usize).sum()
+    }
+
     /// Grid coordinates of a world point (cells; the cube spans [0, R]).
     #[inline]
     pub fn to_grid(&self, p: Vec3) -> Vec3 {
@@ -180,6 +232,27 @@ impl SparseGrid {
         {
             return None;
         }
+        Some(self.corners_in(u, i, j, k))
+    }
+
+    /// The corners at `u` whatever the cell's occupancy bit says (`None`
+    /// only outside the grid): resampling reads pruned cells too.
+    pub fn corners_any(&self, u: Vec3) -> Option<Corners> {
+        let r = self.res as f32;
+        if !(u.x >= 0.0 && u.y >= 0.0 && u.z >= 0.0 && u.x <= r && u.y <= r && u.z <= r) {
+            return None;
+        }
+        let rm = self.res - 1;
+        let (i, j, k) = (
+            (u.x as u32).min(rm),
+            (u.y as u32).min(rm),
+            (u.z as u32).min(rm),
+        );
+        Some(self.corners_in(u, i, j, k))
+    }
+
+    #[inline(always)]
+    fn corners_in(&self, u: Vec3, i: u32, j: u32, k: u32) -> Corners {
         let (fx, fy, fz) = (u.x - i as f32, u.y - j as f32, u.z - k as f32);
         let n = self.res as usize + 1;
         let base = (k as usize * n + j as usize) * n + i as usize;
@@ -192,7 +265,7 @@ impl SparseGrid {
             out.slot[c] = self.index.get(base + off).copied().unwrap_or(EMPTY);
             out.weight[c] = wx[c & 1] * wy[(c >> 1) & 1] * wz[c >> 2];
         }
-        Some(out)
+        out
     }
 
     /// The interpolated record at the corners, for a record length known
@@ -313,6 +386,30 @@ mod tests {
             min: Vec3::ZERO,
             max: Vec3::ONE,
         }
+    }
+
+    /// Pruning clears exactly the cells whose corners are all thin, and
+    /// the interpolation that ignores the bits still reads them.
+    #[test]
+    fn pruning_clears_only_thin_cells() {
+        let mut g = SparseGrid::new(4, unit(), 0, |_, _, _| true);
+        let len = g.record_len();
+        // Everything thin except vertex (2, 2, 2).
+        for s in 0..g.slots() {
+            g.values[s * len] = -20.0;
+        }
+        let thick = g.index[(2 * 5 + 2) * 5 + 2] as usize;
+        g.values[thick * len] = 10.0;
+        assert_eq!(g.occupied_cells(), 64);
+        let cleared = g.prune_cells(1e-3);
+        // The eight cells around (2, 2, 2) keep their bits.
+        assert_eq!(cleared, 56);
+        assert_eq!(g.occupied_cells(), 8);
+        let inside = Vec3::splat(1.5);
+        let far = Vec3::splat(0.5);
+        assert!(g.corners(inside).is_some());
+        assert!(g.corners(far).is_none());
+        assert!(g.corners_any(far).is_some());
     }
 
     #[test]

@@ -60,6 +60,14 @@ pub struct TrainSettings {
     /// `fast_color_thres`).
     #[serde(default)]
     pub skip_weight: f32,
+    /// Every `prune_every` steps of a level (from the step `prune_every`
+    /// on; 0: never), cells whose opacity stays below `prune_opacity` are
+    /// skipped from then on ([`SparseGrid::prune_cells`]).
+    #[serde(default)]
+    pub prune_every: u32,
+    /// See `prune_every`.
+    #[serde(default)]
+    pub prune_opacity: f32,
     /// Total variation of the raw density over lattice edges
     /// (`train::tv`).
     #[serde(default)]
@@ -79,11 +87,11 @@ impl Default for TrainSettings {
             levels: vec![
                 Level {
                     res: 128,
-                    iters: 1500,
+                    iters: 1000,
                 },
                 Level {
                     res: 256,
-                    iters: 3000,
+                    iters: 2000,
                 },
             ],
             batch: 8192,
@@ -98,8 +106,10 @@ impl Default for TrainSettings {
             rgbper: 0.01,
             entropy: 0.001,
             skip_weight: 1e-4,
-            tv_density: 0.0,
-            tv_color: 0.0,
+            tv_density: 1e-10,
+            tv_color: 1e-10,
+            prune_every: 100,
+            prune_opacity: 1e-3,
         }
     }
 }
@@ -149,6 +159,7 @@ impl TrainSettings {
             ("skip_weight", self.skip_weight),
             ("tv_density", self.tv_density),
             ("tv_color", self.tv_color),
+            ("prune_opacity", self.prune_opacity),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(format!("{name} must be finite and not negative (got {v})"));
@@ -180,6 +191,10 @@ pub struct TrainReport {
     pub curve: Vec<(f64, f64)>,
     /// Samples shaded in total.
     pub samples: u64,
+    /// Seconds in the optimiser's passes over the grid (total variation,
+    /// Adam, pruning), all levels; the rest of a level is the ray march.
+    #[serde(default)]
+    pub optimiser_s: f64,
 }
 
 /// Called every few steps with (level, step, steps in level, batch PSNR).
@@ -267,7 +282,7 @@ fn refine(coarse: &SparseGrid, res: u32, keep: f32) -> SparseGrid {
                 (v % m, (v / m) % m, v / (m * m))
             };
             let u = Vec3::new(i as f32, j as f32, k as f32) * ratio;
-            if let Some(c) = coarse.corners(u) {
+            if let Some(c) = coarse.corners_any(u) {
                 coarse.interpolate(&c, rec);
             }
         });
@@ -375,6 +390,7 @@ pub fn train(
                 })
                 .reduce(|| (0.0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
             report.samples += samples;
+            let t_opt = Instant::now();
             tv::add_grad(&grid.values, len, &neighbours, tv_w, &mut grads);
             adam.step(
                 &mut grid.values,
@@ -385,6 +401,10 @@ pub fn train(
             );
             sse_acc += sse;
             n_acc += rays * 3;
+            if settings.prune_every > 0 && (it + 1) % settings.prune_every == 0 {
+                grid.prune_cells(settings.prune_opacity);
+            }
+            report.optimiser_s += t_opt.elapsed().as_secs_f64();
             if (it + 1) % 25 == 0 || it + 1 == level.iters {
                 let mse = sse_acc / n_acc.max(1) as f64;
                 let psnr = -10.0 * mse.max(1e-12).log10();
@@ -398,6 +418,9 @@ pub fn train(
             .levels
             .push((level.res, grid.slots(), t_level.elapsed().as_secs_f64()));
     }
+    // The saved field carries no pruning (the loader derives the cell
+    // bits from the stored vertices): return the same field it will load.
+    grid.rebuild_cells();
     report.total_s = start.elapsed().as_secs_f64();
     Ok((grid, report))
 }

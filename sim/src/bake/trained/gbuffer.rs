@@ -142,3 +142,157 @@ pub fn rasterize(
     }
     Ok(g)
 }
+
+/// How well a geometry's texel points carry the training images, before
+/// any fitting: the field's own colour at the point of the texel each
+/// covered training pixel shows, seen along the pixel's direction, against
+/// the pixel (a direct measure of parallax: a texel off the surface shows
+/// different surface points from different views), and how many of the
+/// object's pixels the geometry covers (cracks lose pixels).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TexelProbe {
+    /// PSNR (dB) of the field's colour at the texel points against the
+    /// covered training pixels (object coverage ≥ 50 %).
+    pub psnr: f64,
+    /// The same over the pixels whose ray meets the field's inside.
+    pub hit_psnr: f64,
+    /// Over those pixels, the field's colour at the first inside point
+    /// along each pixel's ray instead (no parallax, no texel size: the
+    /// ceiling of `hit_psnr` with this field).
+    pub surface_psnr: f64,
+    /// Of those, pixels whose texel point lies more than a voxel from
+    /// the surface point (cracks showing the far side, stray quads).
+    pub far_pixels: u64,
+    /// Covered training pixels.
+    pub pixels: u64,
+    /// Training pixels of the object (coverage ≥ 50 %).
+    pub object_pixels: u64,
+}
+
+/// [`TexelProbe`] of `geo` (at patch `p`) on `views`; `surface_sigma`
+/// is the inside test's density ([`super::extract::Surface::sigma`]).
+pub fn probe(
+    field: &dyn crate::train::field::RadianceField,
+    surface_sigma: f32,
+    geo: &super::extract::Geometry,
+    p: u32,
+    views: &[BakeView<'_>],
+) -> Result<TexelProbe, BakeError> {
+    use super::super::{BakeParams, BakeStats, BakedObject};
+    use glam::Vec3;
+    let layout = AtlasLayout::new(geo.quads.len(), p);
+    let mask: Vec<[u8; 8]> = geo
+        .opacity
+        .iter()
+        .map(|&o| [u8::from(o), 0, 0, 0, 0, 0, 0, 0])
+        .collect();
+    let asset = BakedObject {
+        params: BakeParams::new(2, p),
+        cube: geo.cube,
+        quads: geo.quads.clone(),
+        atlas: super::export::atlas(&layout, &mask),
+        mlp: nerflex_core::shader::MlpWeights::ZERO,
+        stats: BakeStats::default(),
+    }
+    .into_asset()
+    .map_err(|e| BakeError::BadParam(format!("building the probe's asset failed: {e}")))?;
+    let gb = rasterize(&asset, &layout, views)?;
+    let p2 = p * p;
+    let surf = super::extract::Surface {
+        field,
+        sigma: surface_sigma,
+    };
+    let origins: Vec<Vec3> = gb
+        .per_view
+        .iter()
+        .zip(views)
+        .flat_map(|(&n, v)| std::iter::repeat_n(v.camera.position(), n))
+        .collect();
+    let step = geo.voxel / 8.0;
+    let on_surface = |o: Vec3, d: Vec3| -> Option<Vec3> {
+        // Entry and exit of the ray through the cube.
+        let inv = d.recip();
+        let (a, b) = ((geo.cube.min - o) * inv, (geo.cube.max - o) * inv);
+        let t0 = a.min(b).max_element().max(0.0);
+        let t1 = a.max(b).min_element();
+        let mut t = t0;
+        while t <= t1 {
+            if surf.inside(o + t * d) {
+                let (mut lo, mut hi) = ((t - step).max(t0), t);
+                for _ in 0..10 {
+                    let mid = 0.5 * (lo + hi);
+                    if surf.inside(o + mid * d) {
+                        hi = mid;
+                    } else {
+                        lo = mid;
+                    }
+                }
+                return Some(o + hi * d);
+            }
+            t += step;
+        }
+        None
+    };
+    let err = |x: Vec3, px: &GPixel| {
+        let c = field
+            .color(x, Vec3::from_array(px.dir))
+            .clamp(Vec3::ZERO, Vec3::ONE);
+        (0..3)
+            .map(|k| f64::from(c[k] - px.target[k]).powi(2))
+            .sum::<f64>()
+    };
+    // (texel point error, and on rays that meet the inside: texel point
+    // error, surface point error, 1)
+    let (se, hit_se2, hit_n) = gb
+        .pixels
+        .par_iter()
+        .zip(origins.par_iter())
+        .map(|(px, &o)| {
+            let q = &geo.quads[(px.texel / p2) as usize];
+            let t = px.texel % p2;
+            let x = super::extract::texel_point(q, p, t % p, t / p);
+            let e = err(x, px);
+            match on_surface(o, Vec3::from_array(px.dir)) {
+                Some(y) => {
+                    let far = u64::from((x - y).length() > geo.voxel);
+                    (e, [e, err(y, px)], [1u64, far])
+                }
+                None => (e, [0.0; 2], [0; 2]),
+            }
+        })
+        .reduce(
+            || (0.0, [0.0; 2], [0; 2]),
+            |a, b| {
+                (
+                    a.0 + b.0,
+                    [a.1[0] + b.1[0], a.1[1] + b.1[1]],
+                    [a.2[0] + b.2[0], a.2[1] + b.2[1]],
+                )
+            },
+        );
+    let hit = (hit_se2, hit_n);
+    let (hit_se, surface_se, hits, far) = (hit.0[0], hit.0[1], hit.1[0], hit.1[1]);
+    let object_pixels: u64 = views
+        .par_iter()
+        .map(|v| {
+            let (w, h) = v.image.dimensions();
+            let mut n = 0u64;
+            for y in 0..h {
+                for x in 0..w {
+                    n += u64::from(v.coverage(x, y) >= 128);
+                }
+            }
+            n
+        })
+        .sum();
+    let n = gb.pixels.len() as u64;
+    let psnr = |se: f64, n: u64| -10.0 * (se / (3 * n.max(1)) as f64).max(1e-12).log10();
+    Ok(TexelProbe {
+        psnr: psnr(se, n),
+        hit_psnr: psnr(hit_se, hits),
+        surface_psnr: psnr(surface_se, hits),
+        far_pixels: far,
+        pixels: n,
+        object_pixels,
+    })
+}
