@@ -484,9 +484,7 @@ pub fn run(
         fps,
         calibration,
         wall_s: t0.elapsed().as_secs_f64(),
-        baker: crate::pipeline::BakeStore::new(&opts.pipeline.store)
-            .baker()
-            .to_string(),
+        baker: opts.pipeline.baker.name().to_string(),
     };
     write(&report, out)?;
     Ok(report)
@@ -542,6 +540,7 @@ fn settings(opts: &EvalOptions, lpips: bool) -> Vec<(String, String)> {
                 )
             },
         ),
+        ("baker".into(), baker_words(&p.baker)),
         (
             "intervals".into(),
             format!(
@@ -559,6 +558,26 @@ fn settings(opts: &EvalOptions, lpips: bool) -> Vec<(String, String)> {
             },
         ),
     ]
+}
+
+/// The baker and its settings, in words.
+fn baker_words(b: &crate::pipeline::Baker) -> String {
+    match b {
+        crate::pipeline::Baker::Hull => "visual hull (no training)".into(),
+        crate::pipeline::Baker::Trained(t) => format!(
+            "trained: fields {} at {} rays per step, SH degree {}; bakes fine-tuned {} epoch(s), surface alpha {}",
+            t.train
+                .levels
+                .iter()
+                .map(|l| format!("{}³ × {} steps", l.res, l.iters))
+                .collect::<Vec<_>>()
+                .join(" → "),
+            t.train.batch,
+            t.train.sh_degree,
+            t.bake.finetune.epochs,
+            t.bake.surface_alpha
+        ),
+    }
 }
 
 /// Writes `eval.json`, `report.md` and the plots.

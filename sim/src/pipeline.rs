@@ -6,17 +6,21 @@
 //! - [`bakes`]: bakes kept on disk (assets + measured samples), keyed like
 //!   the bake sweep's cache, so a configuration is baked once across
 //!   methods, devices and runs;
+//! - [`fields`]: trained radiance fields kept on disk, one per (views,
+//!   training settings), for the trained baker;
 //! - [`stages`]: the stages as functions;
 //! - [`one`]: one method on one device (`nerflex run`) and its report;
 //! - [`views`]: per-view scores of a rendered scene, whole and per object.
 
 pub mod bakes;
+pub mod fields;
 pub mod one;
 pub mod stages;
 pub mod views;
 
-pub use bakes::{BakeStore, Baked};
-pub use one::{method_plan, run_one, RunResult};
+pub use bakes::{BakeStore, Baked, Baker, TrainedBaker};
+pub use fields::{FieldStore, StoredField};
+pub use one::{method_plan, run_one, RunResult, RunTimes};
 pub use stages::{
     baseline_plan, baseline_views, plan_for, prepare, realise, simulate_devices, simulate_on,
     Input, Network, Options, Prepared, Progress, Quiet, Realised, RealisedObject, SceneQuality,

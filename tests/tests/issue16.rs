@@ -9,13 +9,15 @@
 use nerflex_sim::baselines::Method;
 use nerflex_sim::device::Device;
 use nerflex_sim::eval::{self, compare, detail, verdicts, EvalOptions, EvalReport};
-use nerflex_sim::pipeline::{Options, Quiet};
+use nerflex_sim::pipeline::{Baker, Options, Quiet};
 use nerflex_sim::procedural::Preset;
 use nerflex_sim::simulate::{SimOptions, TurntableSpec};
 use std::path::{Path, PathBuf};
 
 fn tiny(dir: &Path) -> (EvalReport, PathBuf) {
     let mut p = Options::reduced(dir.join("bakes"));
+    // The hull baker: these tests check the pipeline's machinery, not training.
+    p.baker = Baker::Hull;
     p.size = 48;
     p.train_views = 6;
     p.test_views = 3;

@@ -7,13 +7,15 @@
 use nerflex_core::units::Bytes;
 use nerflex_sim::baselines::Method;
 use nerflex_sim::device::Device;
-use nerflex_sim::pipeline::{self, Input, Options, Quiet};
+use nerflex_sim::pipeline::{self, Baker, Input, Options, Quiet};
 use nerflex_sim::procedural::Preset;
 use nerflex_sim::simulate::{SimOptions, TurntableSpec};
 use std::path::Path;
 
 fn tiny(store: &Path) -> Options {
     let mut o = Options::reduced(store.to_path_buf());
+    // The hull baker: these tests check the pipeline's machinery, not training.
+    o.baker = Baker::Hull;
     o.size = 48;
     o.train_views = 6;
     o.test_views = 2;
@@ -132,6 +134,8 @@ fn tiny_scene_end_to_end() {
         networks: vec![],
         sample_bakes: (0, 0),
         scene_json: prepared.scene_json.clone(),
+        baker: opts.baker.name().to_string(),
+        times: pipeline::RunTimes::default(),
     };
     run.write(&out).unwrap();
     let device_file = dir.path().join("dev.toml");

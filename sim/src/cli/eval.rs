@@ -75,7 +75,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let scale = if args.quick { Scale::Quick } else { args.scale };
     let sizes = scale.sizes();
-    let pipeline = args.pipeline.options_at(&args.out, sizes)?;
+    let pipeline = args.pipeline.options_at(&args.out, scale)?;
     let real_size = args.real_size.unwrap_or(sizes.real_size);
     if !(16..=2048).contains(&real_size) {
         bail!("--real-size: must be 16..=2048 pixels, got {real_size}");

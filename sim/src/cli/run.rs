@@ -7,9 +7,10 @@ use crate::baselines::Method;
 use crate::device::Device;
 use crate::eval::scale::{Scale, Sizes};
 use crate::metrics::Lpips;
-use crate::pipeline::{self, Input, Options, Progress};
+use crate::pipeline::{self, Baker, Input, Options, Progress};
 use crate::procedural::Preset;
 use crate::simulate::{self, SimOptions};
+use crate::train::trainer::Level;
 use anyhow::{bail, Context as _};
 use nerflex_core::units::Bytes;
 use std::path::{Path, PathBuf};
@@ -60,6 +61,22 @@ pub struct PipelineArgs {
     /// Folder of kept bakes, shared between runs [default: OUT/bakes].
     #[arg(long, value_name = "DIR")]
     pub store: Option<PathBuf>,
+    /// Baker: `trained` (a radiance field trained per network, kept in
+    /// STORE/fields, baked and fine-tuned) or `hull` (visual hull, no
+    /// training).
+    #[arg(long, value_parser = parse_baker, default_value = "trained")]
+    pub baker: BakerName,
+    /// The trained baker's training schedule, `RES:STEPS` comma-separated
+    /// [default: by the scale; run: 48:300].
+    #[arg(long, value_delimiter = ',', value_parser = parse_level, value_name = "RES:STEPS")]
+    pub train_levels: Vec<Level>,
+    /// Rays per training step [default: by the scale; run: 2048].
+    #[arg(long)]
+    pub train_batch: Option<u32>,
+    /// The trained baker's fine-tune passes over the training pixels
+    /// [default: by the scale; run: 3].
+    #[arg(long)]
+    pub epochs: Option<f32>,
     /// Leave LPIPS out even when its weights are available.
     #[arg(long)]
     pub no_lpips: bool,
@@ -73,11 +90,13 @@ impl PipelineArgs {
     /// reduced defaults otherwise), with the bake store under `out` unless
     /// `--store` names one.
     pub fn options(&self, out: &Path) -> anyhow::Result<Options> {
-        self.options_at(out, Scale::Reduced.sizes())
+        self.options_at(out, Scale::Reduced)
     }
 
-    /// As [`PipelineArgs::options`], with `defaults` for the sizes not given.
-    pub fn options_at(&self, out: &Path, defaults: Sizes) -> anyhow::Result<Options> {
+    /// As [`PipelineArgs::options`], with `scale`'s sizes and training
+    /// settings for those not given.
+    pub fn options_at(&self, out: &Path, scale: Scale) -> anyhow::Result<Options> {
+        let defaults: Sizes = scale.sizes();
         let size = self.size.unwrap_or(defaults.size);
         let views = self.views.unwrap_or(defaults.train_views);
         let test_views = self.test_views.unwrap_or(defaults.test_views);
@@ -97,7 +116,41 @@ impl PipelineArgs {
             frames,
             ..SimOptions::default()
         };
+        opts.baker = self.baker_at(scale)?;
         Ok(opts)
+    }
+
+    /// The baker the flags choose, with `scale`'s settings where no flag
+    /// overrides them.
+    fn baker_at(&self, scale: Scale) -> anyhow::Result<Baker> {
+        let trained_flags =
+            !self.train_levels.is_empty() || self.train_batch.is_some() || self.epochs.is_some();
+        match self.baker {
+            BakerName::Hull if trained_flags => bail!(
+                "--train-levels, --train-batch and --epochs are for --baker trained, not --baker hull"
+            ),
+            BakerName::Hull => Ok(Baker::Hull),
+            BakerName::Trained => {
+                let mut train = scale.train_settings();
+                if !self.train_levels.is_empty() {
+                    train.levels = self.train_levels.clone();
+                }
+                if let Some(b) = self.train_batch {
+                    train.batch = b;
+                }
+                train
+                    .validate()
+                    .map_err(|e| anyhow::anyhow!("--train-levels/--train-batch: {e}"))?;
+                let mut bake = scale.bake_settings();
+                if let Some(e) = self.epochs {
+                    if !(e.is_finite() && (0.0..=100.0).contains(&e)) {
+                        bail!("--epochs: must be a number in 0..=100, got {e}");
+                    }
+                    bake.finetune.epochs = e;
+                }
+                Ok(Baker::trained(train, bake))
+            }
+        }
     }
 
     /// Keeps the default bake store (OUT/bakes, about 1 GB for a built-in
@@ -120,6 +173,38 @@ impl PipelineArgs {
     pub fn bar(&self) -> Bar {
         Bar::new(self.quiet)
     }
+}
+
+/// The baker named by `--baker`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BakerName {
+    /// The trained baker.
+    Trained,
+    /// The visual hull.
+    Hull,
+}
+
+fn parse_baker(s: &str) -> Result<BakerName, String> {
+    match s {
+        "trained" => Ok(BakerName::Trained),
+        "hull" => Ok(BakerName::Hull),
+        _ => Err(format!("`{s}` is not a baker (trained, hull)")),
+    }
+}
+
+fn parse_level(s: &str) -> Result<Level, String> {
+    let (r, i) = s
+        .split_once(':')
+        .ok_or_else(|| format!("`{s}`: expected RES:STEPS, e.g. 64:300"))?;
+    let num = |t: &str, what: &str| {
+        t.trim()
+            .parse::<u32>()
+            .map_err(|_| format!("`{t}` is not a {what}"))
+    };
+    Ok(Level {
+        res: num(r, "resolution")?,
+        iters: num(i, "step count")?,
+    })
 }
 
 /// Creates `dir` with a `.gitignore` of `*` in it (work files that must not
@@ -174,6 +259,9 @@ impl Progress for Bar {
     fn step(&self, what: &str) {
         self.0.set_message(what.to_string());
         self.0.inc(1);
+    }
+    fn note(&self, what: &str) {
+        self.0.set_message(what.to_string());
     }
 }
 
@@ -270,6 +358,35 @@ mod tests {
         assert_eq!(o.store, Path::new("OUT").join("bakes"));
         let o = options(&["--store", "S"]).unwrap();
         assert_eq!(o.store, Path::new("S"));
+    }
+
+    #[test]
+    fn the_baker_flags_choose_the_baker() {
+        let o = options(&[]).unwrap();
+        assert_eq!(o.baker, Scale::Reduced.baker());
+        assert_eq!(o.baker.name(), "trained");
+        let o = options(&["--baker", "hull"]).unwrap();
+        assert_eq!(o.baker, Baker::Hull);
+        let o = options(&["--train-levels", "32:10,48:20", "--epochs", "0.5"]).unwrap();
+        let Baker::Trained(t) = &o.baker else {
+            panic!("not trained: {:?}", o.baker)
+        };
+        assert_eq!(
+            t.train.levels,
+            vec![Level { res: 32, iters: 10 }, Level { res: 48, iters: 20 }]
+        );
+        assert_eq!(t.bake.finetune.epochs, 0.5);
+        for (flags, name) in [
+            (&["--baker", "fancy"][..], "fancy"),
+            (&["--baker", "hull", "--epochs", "1"][..], "--baker hull"),
+            (&["--train-levels", "64"][..], "RES:STEPS"),
+            (&["--train-levels", "64:10,32:10"][..], "--train-levels"),
+            (&["--epochs=-1"][..], "--epochs"),
+            (&["--epochs", "inf"][..], "--epochs"),
+        ] {
+            let e = options(flags).err().unwrap();
+            assert!(format!("{e:#}").contains(name), "{flags:?}: {e:#}");
+        }
     }
 
     #[test]

@@ -20,6 +20,10 @@
 //!   paper-scale run (160 × 160, 16 + 4 views, 200-pixel real composite);
 //!   `nerflex run`'s defaults.
 
+use crate::bake::trained::TrainedParams;
+use crate::pipeline::Baker;
+use crate::train::trainer::{Level, TrainSettings};
+
 /// An evaluation's sizes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Scale {
@@ -74,6 +78,57 @@ impl Scale {
         }
     }
 
+    /// How the trained baker's fields are trained at this scale
+    /// (`docs/evaluation.md`, "Training budgets").
+    pub fn train_settings(self) -> TrainSettings {
+        // Measured choices and the reasons: docs/evaluation.md, "Training
+        // budgets".
+        let (levels, batch) = match self {
+            // Not measured at this size (no 800-pixel training was run for
+            // this choice): one 128³ level sized so that about 48 fields
+            // take about half an hour (docs/evaluation.md).
+            Scale::Paper => (
+                vec![Level {
+                    res: 128,
+                    iters: 400,
+                }],
+                4096,
+            ),
+            // 16 views of an enlarged network at 128–160 px: one 48³
+            // level held out as well as 64³ → 96³ at a third of the time.
+            Scale::Quick | Scale::Reduced => (
+                vec![Level {
+                    res: 48,
+                    iters: 300,
+                }],
+                2048,
+            ),
+        };
+        TrainSettings {
+            levels,
+            batch,
+            ..TrainSettings::default()
+        }
+    }
+
+    /// How the trained baker bakes a field at this scale (`grid` and
+    /// `patch` are set per bake).
+    pub fn bake_settings(self) -> TrainedParams {
+        let mut p = TrainedParams::new(DEFAULT_GRID, DEFAULT_PATCH);
+        p.finetune.epochs = match self {
+            // 50 views × 800² pixels: one pass is ≈ 8 M pixel steps per
+            // network (≈ 30 s), so half a pass.
+            Scale::Paper => 0.5,
+            Scale::Quick | Scale::Reduced => 3.0,
+        };
+        p
+    }
+
+    /// The trained baker with this scale's settings.
+    pub fn baker(self) -> Baker {
+        Baker::trained(self.train_settings(), self.bake_settings())
+    }
+
     /// The name in reports.
     pub fn name(self) -> &'static str {
         match self {
@@ -83,6 +138,10 @@ impl Scale {
         }
     }
 }
+
+/// Placeholders of [`Scale::bake_settings`] (replaced per bake).
+const DEFAULT_GRID: u32 = 128;
+const DEFAULT_PATCH: u32 = 17;
 
 #[cfg(test)]
 mod tests {
@@ -96,5 +155,13 @@ mod tests {
         // Quick keeps enough held-out views for an interval.
         assert!(Scale::Quick.sizes().test_views >= 10);
         assert_eq!(Scale::Reduced.sizes().size, 160);
+    }
+
+    #[test]
+    fn every_scale_trains_with_valid_settings() {
+        for s in [Scale::Paper, Scale::Quick, Scale::Reduced] {
+            s.train_settings().validate().unwrap();
+            assert_eq!(s.baker().name(), crate::pipeline::bakes::TRAINED_BAKER);
+        }
     }
 }

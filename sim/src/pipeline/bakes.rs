@@ -8,17 +8,68 @@
 //! Layout: `ROOT/<key>/asset/` (the export) and `ROOT/<key>/sample.json`
 //! (the measured sample), written into `ROOT/.<key>.partial/` and renamed
 //! when complete, so an interrupted bake is never mistaken for a finished one.
+//! A trained bake also keeps `bake.json` (the trained baker's counts and
+//! stage times).
+//!
+//! Two bakers ([`Baker`]): the visual hull ([`crate::bake::bake`]) and the
+//! trained baker ([`crate::bake::trained::bake`]) from a radiance field
+//! that the field store beside the bakes (`ROOT/fields/`,
+//! [`super::fields`]) trains once per (views, training settings). A trained
+//! bake's key adds the field's key, the trained baker's version and its
+//! settings to the hull key's inputs and has another shape
+//! (`<name>-g<g>-p<p>-t<hash>`), so the two bakers never share an entry.
 
+use super::fields::{FieldStore, StoredField};
+use super::stages::{Progress, Quiet};
 use crate::asset::Asset;
-use crate::bake::sweep::{self, Cache, ObjectViews, Sample};
-use crate::bake::{self, BakeParams};
+use crate::bake::sweep::{self, Cache, Fnv64, ObjectViews, Sample};
+use crate::bake::trained::{self, TrainedParams, TRAINED_BAKER_VERSION};
+use crate::bake::{self, BakeParams, BakedObject};
 use crate::metrics::Lpips;
+use crate::train::trainer::TrainSettings;
 use anyhow::Context as _;
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 /// The visual-hull baker's name in reports ([`crate::bake::bake`]).
 pub const HULL_BAKER: &str = "hull";
+
+/// The trained baker's name in reports ([`crate::bake::trained::bake`]).
+pub const TRAINED_BAKER: &str = "trained";
+
+/// Which baker a store's assets come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Baker {
+    /// The visual hull: silhouettes and colours of the views, no training.
+    Hull,
+    /// A radiance field trained on the views, baked and fine-tuned.
+    Trained(Box<TrainedBaker>),
+}
+
+/// The trained baker's settings.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrainedBaker {
+    /// How each network's field is trained.
+    pub train: TrainSettings,
+    /// How a field is baked; its `grid` and `patch` are set per bake.
+    pub bake: TrainedParams,
+}
+
+impl Baker {
+    /// The trained baker with these settings.
+    pub fn trained(train: TrainSettings, bake: TrainedParams) -> Baker {
+        Baker::Trained(Box::new(TrainedBaker { train, bake }))
+    }
+
+    /// Its name in reports: [`HULL_BAKER`] or [`TRAINED_BAKER`].
+    pub fn name(&self) -> &'static str {
+        match self {
+            Baker::Hull => HULL_BAKER,
+            Baker::Trained(_) => TRAINED_BAKER,
+        }
+    }
+}
 
 /// A finished bake.
 #[derive(Clone, Debug)]
@@ -27,10 +78,16 @@ pub struct Baked {
     pub sample: Sample,
     /// The asset folder.
     pub dir: PathBuf,
-    /// Seconds spent baking, writing and measuring now (0 when cached).
+    /// Seconds spent baking, writing and measuring now, training excluded
+    /// (0 when cached).
     pub seconds: f64,
     /// Whether it came from the cache.
     pub cached: bool,
+    /// Seconds spent training (and saving) its field now: 0 for the hull
+    /// baker, a stored bake, or a field already in the field store.
+    pub train_s: f64,
+    /// Whether its field was trained by this request.
+    pub field_trained: bool,
 }
 
 impl Baked {
@@ -40,16 +97,44 @@ impl Baked {
     }
 }
 
-/// The folder of kept bakes.
-#[derive(Clone, Debug)]
+/// The folder of kept bakes (and, for the trained baker, of the fields
+/// they come from).
+#[derive(Clone)]
 pub struct BakeStore {
     root: PathBuf,
+    baker: Baker,
+    fields: FieldStore,
+    /// The last field used, so the sample bakes of one network load it once.
+    last_field: Arc<Mutex<Option<StoredField>>>,
+}
+
+impl std::fmt::Debug for BakeStore {
+    // Not the field in memory (millions of values).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("BakeStore")
+            .field("root", &self.root)
+            .field("baker", &self.baker)
+            .field("fields", &self.fields)
+            .finish_non_exhaustive()
+    }
 }
 
 impl BakeStore {
-    /// A store at `root` (created on first bake).
+    /// A store of visual-hull bakes at `root` (created on first bake).
     pub fn new(root: impl Into<PathBuf>) -> Self {
-        Self { root: root.into() }
+        Self::with_baker(root, Baker::Hull)
+    }
+
+    /// A store at `root` whose bakes come from `baker`; trained fields are
+    /// kept in `root/fields/`.
+    pub fn with_baker(root: impl Into<PathBuf>, baker: Baker) -> Self {
+        let root = root.into();
+        Self {
+            fields: FieldStore::new(root.join("fields")),
+            root,
+            baker,
+            last_field: Arc::new(Mutex::new(None)),
+        }
     }
 
     /// The folder.
@@ -58,13 +143,93 @@ impl BakeStore {
     }
 
     /// The baker behind [`BakeStore::get_or_bake`]: the one place a run's
-    /// assets come from, so reports name it (a trained baker plugs in here).
+    /// assets come from, so reports name it.
     pub fn baker(&self) -> &'static str {
-        HULL_BAKER
+        self.baker.name()
+    }
+
+    /// The baker and its settings.
+    pub fn baker_settings(&self) -> &Baker {
+        &self.baker
+    }
+
+    /// The field store beside the bakes.
+    pub fn fields(&self) -> &FieldStore {
+        &self.fields
+    }
+
+    /// The trained baker's parameters at (g, p) (`None` for the hull).
+    fn trained_params(&self, g: u32, p: u32) -> Option<(&TrainSettings, TrainedParams)> {
+        match &self.baker {
+            Baker::Hull => None,
+            Baker::Trained(t) => {
+                let mut params = t.bake.clone();
+                params.grid = g;
+                params.patch = p;
+                Some((&t.train, params))
+            }
+        }
+    }
+
+    /// The store key of the bake of `obj` at (g, p): the bake sweep's key
+    /// for the hull; for the trained baker that key's inputs plus the
+    /// field's key, the trained baker's version and settings.
+    pub fn key(&self, obj: &ObjectViews, g: u32, p: u32, with_lpips: bool) -> String {
+        let key = Cache::key(obj, &BakeParams::new(g, p), with_lpips);
+        let Some((train, params)) = self.trained_params(g, p) else {
+            return key;
+        };
+        let mut h = Fnv64::default();
+        h.write(key.as_bytes());
+        h.write(
+            format!(
+                "trained v{TRAINED_BAKER_VERSION} field {} {params:?}",
+                FieldStore::key(obj, train)
+            )
+            .as_bytes(),
+        );
+        format!("{}-g{g}-p{p}-t{:016x}", obj.name, h.finish())
+    }
+
+    /// The trained field of `obj` (the trained baker only): the one used
+    /// last, or from the field store, or trained now.
+    pub fn field(&self, obj: &ObjectViews, progress: &dyn Progress) -> anyhow::Result<StoredField> {
+        let Baker::Trained(t) = &self.baker else {
+            anyhow::bail!("the hull baker uses no field");
+        };
+        let key = FieldStore::key(obj, &t.train);
+        if let Ok(last) = self.last_field.lock() {
+            if let Some(f) = last.as_ref().filter(|f| f.key == key) {
+                let mut f = f.clone();
+                (f.trained_now, f.train_s, f.load_s) = (false, 0.0, 0.0);
+                return Ok(f);
+            }
+        }
+        // Drop the last field before training or loading the next.
+        if let Ok(mut last) = self.last_field.lock() {
+            *last = None;
+        }
+        if !self.fields.contains(obj, &t.train) {
+            progress.note(&format!("training the field of {}", obj.name));
+        }
+        let name = obj.name.as_str();
+        let field = self
+            .fields
+            .get_or_train(obj, &t.train, &|level, step, steps, psnr| {
+                progress.note(&format!(
+                    "training {name}: level {} step {step}/{steps}, batch PSNR {psnr:.2} dB",
+                    level + 1
+                ));
+            })?;
+        if let Ok(mut last) = self.last_field.lock() {
+            *last = Some(field.clone());
+        }
+        Ok(field)
     }
 
     /// The bake of `obj` at (g, p): from the store, or baked, written and
-    /// measured now.
+    /// measured now (training its field first if the trained baker needs
+    /// one that is not in the field store).
     pub fn get_or_bake(
         &self,
         obj: &ObjectViews,
@@ -72,8 +237,19 @@ impl BakeStore {
         p: u32,
         lpips: Option<&Lpips>,
     ) -> anyhow::Result<Baked> {
-        let params = BakeParams::new(g, p);
-        let key = Cache::key(obj, &params, lpips.is_some());
+        self.get_or_bake_with(obj, g, p, lpips, &Quiet)
+    }
+
+    /// [`BakeStore::get_or_bake`], telling `progress` how training goes.
+    pub fn get_or_bake_with(
+        &self,
+        obj: &ObjectViews,
+        g: u32,
+        p: u32,
+        lpips: Option<&Lpips>,
+        progress: &dyn Progress,
+    ) -> anyhow::Result<Baked> {
+        let key = self.key(obj, g, p, lpips.is_some());
         let dir = self.root.join(&key);
         let sample_path = dir.join("sample.json");
         if let Some(sample) = std::fs::read_to_string(&sample_path)
@@ -85,20 +261,67 @@ impl BakeStore {
                 dir: dir.join("asset"),
                 seconds: 0.0,
                 cached: true,
+                train_s: 0.0,
+                field_trained: false,
             });
         }
         let t0 = Instant::now();
-        let mut params = params;
-        params.search_box = obj.search_box;
-        let views = obj.bake_views();
-        let baked = bake::bake(&views, &params)
-            .with_context(|| format!("baking {} at g={g} p={p}", obj.name))?;
-        drop(views);
+        let (baked, details, field_s, field_trained) = match self.trained_params(g, p) {
+            None => {
+                let mut params = BakeParams::new(g, p);
+                params.search_box = obj.search_box;
+                let views = obj.bake_views();
+                let baked = bake::bake(&views, &params)
+                    .with_context(|| format!("baking {} at g={g} p={p}", obj.name))?;
+                (baked, None, (0.0, 0.0), false)
+            }
+            Some((_, params)) => {
+                let field = self.field(obj, progress)?;
+                progress.note(&format!(
+                    "baking {} at g={g} p={p} from its field",
+                    obj.name
+                ));
+                let views = obj.bake_views();
+                let tb =
+                    trained::bake(field.grid.as_ref(), &views, &params).with_context(|| {
+                        format!(
+                            "baking {} at g={g} p={p} from its field {}",
+                            obj.name,
+                            field.path.display()
+                        )
+                    })?;
+                let details = trained_details(&tb.stats, &field);
+                let field_s = (field.train_s, field.load_s);
+                (tb.baked, Some(details), field_s, field.trained_now)
+            }
+        };
+        let sample = self.write_and_measure(obj, baked, &dir, details, lpips)?;
+        Ok(Baked {
+            sample,
+            dir: dir.join("asset"),
+            // Loading a stored field counts as baking; training does not.
+            seconds: (t0.elapsed().as_secs_f64() - field_s.0).max(0.0),
+            cached: false,
+            train_s: field_s.0,
+            field_trained,
+        })
+    }
+
+    /// Writes the export and its measured sample into the store entry `dir`.
+    fn write_and_measure(
+        &self,
+        obj: &ObjectViews,
+        baked: BakedObject,
+        dir: &Path,
+        details: Option<serde_json::Value>,
+        lpips: Option<&Lpips>,
+    ) -> anyhow::Result<Sample> {
+        let (g, p) = (baked.params.grid, baked.params.patch);
         let (quads, gpu_bytes) = (baked.quads.len() as u64, baked.gpu_bytes());
         let asset = baked.into_asset()?;
         // Built under a name unique to this writer: two runs baking the
         // same key do not share a temporary folder.
-        let stage = crate::output::StagedDir::new(&dir)?;
+        let stage = crate::output::StagedDir::new(dir)?;
         let tmp = stage.path().to_path_buf();
         let size_bytes = asset
             .write(&tmp.join("asset"))
@@ -121,15 +344,48 @@ impl BakeStore {
             serde_json::to_string_pretty(&sample)?,
         )
         .with_context(|| format!("{}: cannot write", tmp.display()))?;
+        if let Some(d) = details {
+            std::fs::write(tmp.join("bake.json"), serde_json::to_string_pretty(&d)?)
+                .with_context(|| format!("{}: cannot write", tmp.display()))?;
+        }
         stage.commit(
-            &|n| n == "asset" || n == "sample.json",
-            "a bake store entry holds only asset/ and sample.json",
+            &|n| n == "asset" || n == "sample.json" || n == "bake.json",
+            "a bake store entry holds only asset/, sample.json and bake.json",
         )?;
-        Ok(Baked {
-            sample,
-            dir: dir.join("asset"),
-            seconds: t0.elapsed().as_secs_f64(),
-            cached: false,
-        })
+        Ok(sample)
     }
+}
+
+/// What `bake.json` keeps of a trained bake: its field and the baker's
+/// counts and stage times.
+fn trained_details(s: &trained::TrainedStats, field: &StoredField) -> serde_json::Value {
+    let t = &s.times;
+    serde_json::json!({
+        "baker": TRAINED_BAKER,
+        "baker_version": TRAINED_BAKER_VERSION,
+        "field": field.key,
+        "field_train_s": field.report.as_ref().map(|r| r.total_s),
+        "shell_voxels": s.shell_voxels,
+        "full_voxels": s.full_voxels,
+        "extracted_quads": s.extracted_quads,
+        "kept_quads": s.kept_quads,
+        "opaque_texels": s.opaque_texels,
+        "trained_texels": s.trained_texels,
+        "filled_texels": s.filled_texels,
+        "train_pixels": s.train_pixels,
+        "fit_mse": s.fit_mse,
+        "finetune": {
+            "steps": s.finetune.steps,
+            "pixel_steps": s.finetune.pixel_steps,
+            "psnr_before": s.finetune.psnr_before,
+            "psnr_after": s.finetune.psnr_after,
+        },
+        "seconds": {
+            "extract": t.extract_s,
+            "gbuffer": t.gbuffer_s,
+            "init": t.init_s,
+            "finetune": t.finetune_s,
+            "atlas": t.atlas_s,
+        },
+    })
 }

@@ -1,6 +1,5 @@
 //! One method on one device: what `nerflex run` does and reports.
 
-use super::bakes::BakeStore;
 use super::stages::{
     self, baseline_plan, is_planner, next_budget, plan_for, plan_within, realise, simulate_on,
     Input, Options, Prepared, Progress, Realised, RealisedObject, SceneQuality, Timings,
@@ -16,6 +15,7 @@ use nerflex_core::units::Bytes;
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::Path;
+use std::time::Instant;
 
 /// The result of `nerflex run`.
 pub struct RunResult {
@@ -42,6 +42,32 @@ pub struct RunResult {
     pub sample_bakes: (usize, usize),
     /// The planner's scene (profile form).
     pub scene_json: serde_json::Value,
+    /// The baker every asset came from (`hull` or `trained`).
+    pub baker: String,
+    /// Where the time went.
+    pub times: RunTimes,
+}
+
+/// Wall-clock seconds of a run's parts (what `nerflex run` prints).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct RunTimes {
+    /// Generating the built-in capture.
+    pub capture_s: f64,
+    /// Segmentation.
+    pub segment_s: f64,
+    /// Training fields (profiler networks and the plan's networks).
+    pub train_s: f64,
+    /// Fields trained now (profiler networks; Single/Block fields count
+    /// in `train_s` only).
+    pub fields_trained: usize,
+    /// The profiler's sample bakes (training excluded).
+    pub sample_bakes_s: f64,
+    /// The plan's bakes (training excluded; Single/Block: their bakes).
+    pub plan_bakes_s: f64,
+    /// Rendering and measuring the held-out views of the whole scene.
+    pub measure_s: f64,
+    /// The device simulation.
+    pub simulate_s: f64,
 }
 
 /// Runs the whole pipeline for one method on one device.
@@ -56,8 +82,27 @@ pub fn run_one(
     progress: &dyn Progress,
 ) -> anyhow::Result<RunResult> {
     let prepared = stages::prepare(input, opts, out, lpips, progress)?;
+    let t_plan = Instant::now();
     let (mut plan, mut plan_s) = method_plan(&prepared, method, device, opts, lpips, progress)?;
-    let mut realised = realise(&prepared, &plan, opts, lpips, progress)?;
+    // Single/Block bake (and train) inside method_plan.
+    let baseline_s = t_plan.elapsed().as_secs_f64() - plan_s;
+    let mut times = RunTimes {
+        capture_s: prepared.timings.capture_s,
+        segment_s: prepared.timings.segment_s,
+        train_s: prepared.timings.train_s,
+        fields_trained: prepared.samples.iter().filter(|b| b.field_trained).count(),
+        sample_bakes_s: prepared.timings.sample_bakes_s,
+        ..RunTimes::default()
+    };
+    let realise_timed = |plan: &Plan, times: &mut RunTimes| {
+        let t0 = Instant::now();
+        let r = realise(&prepared, plan, opts, lpips, progress)?;
+        times.train_s += r.train_s;
+        times.plan_bakes_s += r.bake_s;
+        times.measure_s += t0.elapsed().as_secs_f64() - r.bake_s - r.train_s;
+        anyhow::Ok(r)
+    };
+    let mut realised = realise_timed(&plan, &mut times)?;
     let mut replans = 0;
     while is_planner(method) && replans < MAX_REPLANS {
         let Some(next) = next_budget(
@@ -70,11 +115,15 @@ pub fn run_one(
         let (p, s) = plan_within(&prepared, method, device, next)?;
         plan = p;
         plan_s += s;
-        realised = realise(&prepared, &plan, opts, lpips, progress)?;
+        realised = realise_timed(&plan, &mut times)?;
         replans += 1;
     }
+    // Baseline bakes were done by method_plan; realise found them stored.
+    times.plan_bakes_s += baseline_s.max(0.0);
     progress.stage(&format!("simulating on {}", device.name), 1);
+    let t_sim = Instant::now();
     let simulation = simulate_on(&realised, device, opts)?;
+    times.simulate_s = t_sim.elapsed().as_secs_f64();
     progress.step("simulated");
     let baked = prepared.samples.iter().filter(|b| !b.cached).count();
     Ok(RunResult {
@@ -93,6 +142,8 @@ pub fn run_one(
             .collect(),
         sample_bakes: (baked, prepared.samples.len() - baked),
         scene_json: prepared.scene_json.clone(),
+        baker: opts.baker.name().to_string(),
+        times,
     })
 }
 
@@ -120,7 +171,7 @@ pub fn method_plan(
             };
             let (g, p) = opts.baseline;
             progress.stage(&format!("{method} bakes at ({g}, {p})"), views.len() as u64);
-            let store = BakeStore::new(&opts.store);
+            let store = opts.bake_store();
             let (plan, _) = baseline_plan(
                 method,
                 &views,
@@ -141,8 +192,10 @@ struct ReportJson<'a> {
     scene: &'a str,
     device: &'a str,
     method: String,
+    baker: &'a str,
     networks: Vec<NetworkJson<'a>>,
     timings: Timings,
+    times: RunTimes,
     plan_s: f64,
     replans: u32,
     sample_bakes_new: usize,
@@ -171,8 +224,8 @@ impl RunResult {
         let mut s = String::new();
         let _ = writeln!(
             s,
-            "nerflex run: {} on {} with {} ({:.0} s)",
-            self.label, self.device, self.plan.method, wall_s
+            "nerflex run: {} on {} with {}, {} baker ({:.0} s)",
+            self.label, self.device, self.plan.method, self.baker, wall_s
         );
         let names: Vec<&str> = self.networks.iter().map(|(n, _)| n.as_str()).collect();
         let _ = writeln!(
@@ -267,6 +320,20 @@ impl RunResult {
                 );
             }
         }
+        let t = &self.times;
+        let _ = writeln!(
+            s,
+            "time: capture {:.0} s, segmentation {:.1} s, training {:.0} s ({} profiler field(s) trained now), \
+             sample bakes {:.0} s, plan bakes {:.0} s, held-out views {:.0} s, simulation {:.1} s",
+            t.capture_s,
+            t.segment_s,
+            t.train_s,
+            t.fields_trained,
+            t.sample_bakes_s,
+            t.plan_bakes_s,
+            t.measure_s,
+            t.simulate_s
+        );
         s
     }
 
@@ -284,6 +351,7 @@ impl RunResult {
             scene: &self.label,
             device: &self.device,
             method: self.plan.method.to_string(),
+            baker: &self.baker,
             networks: self
                 .networks
                 .iter()
@@ -293,6 +361,7 @@ impl RunResult {
                 })
                 .collect(),
             timings: self.timings,
+            times: self.times,
             plan_s: self.plan_s,
             replans: self.replans,
             sample_bakes_new: self.sample_bakes.0,

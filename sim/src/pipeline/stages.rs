@@ -16,7 +16,7 @@
 //! (128, 17), Block-NeRF one bake per object at (128, 17) from the original
 //! (not enlarged) views ([`baseline_views`], [`baseline_plan`]).
 
-use super::bakes::{BakeStore, Baked};
+use super::bakes::{BakeStore, Baked, Baker};
 use super::views::{score_view, ViewScores};
 use crate::bake::sweep::{Fnv64, ObjectViews};
 use crate::baselines::{self, Budget, Method, Plan, PlannedObject, DEFAULT_G, DEFAULT_P};
@@ -79,8 +79,11 @@ pub struct Options {
     pub turntable: TurntableSpec,
     /// Frames and period.
     pub sim: SimOptions,
-    /// Folder of kept bakes.
+    /// Folder of kept bakes (and trained fields, in `fields/`).
     pub store: PathBuf,
+    /// Where every asset comes from: the trained baker (default; fields
+    /// trained per network with the scale's settings) or the visual hull.
+    pub baker: Baker,
     /// Write the rendered held-out views here (`None`: not kept).
     pub renders: Option<PathBuf>,
     /// The (g, p) of Single-NeRF and Block-NeRF (the paper: MobileNeRF's
@@ -109,10 +112,16 @@ impl Options {
             turntable: TurntableSpec::DEFAULT,
             sim: SimOptions::default(),
             store,
+            baker: crate::eval::scale::Scale::Reduced.baker(),
             renders: None,
             baseline: (DEFAULT_G, DEFAULT_P),
             spread: None,
         }
+    }
+
+    /// The bake store these options name (`store`, `baker`).
+    pub fn bake_store(&self) -> BakeStore {
+        BakeStore::with_baker(&self.store, self.baker.clone())
     }
 }
 
@@ -122,6 +131,8 @@ pub trait Progress: Sync {
     fn stage(&self, name: &str, steps: u64);
     /// One unit of work is done; `what` names it.
     fn step(&self, what: &str);
+    /// What is happening within the current unit (e.g. a field training).
+    fn note(&self, _what: &str) {}
 }
 
 /// No progress output.
@@ -152,8 +163,13 @@ pub struct Timings {
     pub segment_s: f64,
     /// Profiler: choosing sample points and fitting the curves.
     pub profile_s: f64,
-    /// Baking and measuring the sample points (training; not in the paper's figure).
+    /// Baking and measuring the sample points (training excluded; not in
+    /// the paper's figure).
     pub sample_bakes_s: f64,
+    /// Training the networks' fields for the sample bakes (0 for the hull
+    /// baker or fields in the store; not in the paper's figure).
+    #[serde(default)]
+    pub train_s: f64,
 }
 
 /// The method-independent part: segmented, sampled, fitted.
@@ -384,7 +400,7 @@ pub fn prepare(
     let points = plan.points();
     let points_s = t_points.elapsed().as_secs_f64();
 
-    let store = BakeStore::new(&opts.store);
+    let store = opts.bake_store();
     progress.stage(
         "profiler sample bakes",
         (networks.len() * points.len()) as u64,
@@ -393,12 +409,13 @@ pub fn prepare(
     let mut samples = Vec::new();
     for n in &networks {
         for &(g, p) in &points {
-            let b = store.get_or_bake(&n.views, g, p, lpips)?;
+            let b = store.get_or_bake_with(&n.views, g, p, lpips, progress)?;
             progress.step(&format!("{} g={g} p={p}", n.name));
             samples.push(b);
         }
     }
-    timings.sample_bakes_s = t1.elapsed().as_secs_f64();
+    timings.train_s = samples.iter().map(|b| b.train_s).sum();
+    timings.sample_bakes_s = t1.elapsed().as_secs_f64() - timings.train_s;
 
     progress.stage("fitting profiles", 1);
     let t2 = Instant::now();
@@ -541,6 +558,8 @@ pub struct Realised {
     pub views: Vec<ViewScores>,
     /// Seconds spent baking now (0 if everything was in the store).
     pub bake_s: f64,
+    /// Seconds spent training fields for those bakes now.
+    pub train_s: f64,
 }
 
 impl Realised {
@@ -671,7 +690,7 @@ pub fn baseline_plan(
     let mut objects = Vec::new();
     let mut bakes = Vec::new();
     for v in views {
-        let b = store.get_or_bake(v, g, p, lpips)?;
+        let b = store.get_or_bake_with(v, g, p, lpips, progress)?;
         progress.step(&format!("{} {} g={g} p={p}", method, v.name));
         objects.push(PlannedObject {
             name: v.name.clone(),
@@ -713,17 +732,18 @@ pub fn realise(
     lpips: Option<&Lpips>,
     progress: &dyn Progress,
 ) -> anyhow::Result<Realised> {
-    let store = BakeStore::new(&opts.store);
+    let store = opts.bake_store();
     progress.stage(
         &format!("baking the {} plan", plan.method),
         plan.objects.len() as u64,
     );
     let mut objects = Vec::new();
-    let mut bake_s = 0.0;
+    let (mut bake_s, mut train_s) = (0.0, 0.0);
     for o in &plan.objects {
         let v = views_of(prepared, plan.method, o)?;
-        let b = store.get_or_bake(v, o.g, o.p, lpips)?;
+        let b = store.get_or_bake_with(v, o.g, o.p, lpips, progress)?;
         bake_s += b.seconds;
+        train_s += b.train_s;
         progress.step(&format!("{} g={} p={}", o.name, o.g, o.p));
         objects.push(RealisedObject {
             name: o.name.clone(),
@@ -746,6 +766,7 @@ pub fn realise(
         quality,
         views,
         bake_s,
+        train_s,
     })
 }
 

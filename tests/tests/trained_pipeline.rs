@@ -1,0 +1,297 @@
+//! The trained pipeline inside `nerflex run` / `nerflex eval` (issue 16):
+//! the field store trains a field once and then loads it; the bake store's
+//! keys keep hull and trained bakes (and different training settings)
+//! apart; a whole run on a tiny two-object capture with the trained baker
+//! produces assets, a report naming the trained baker and the time split,
+//! and a second run trains and bakes nothing.
+
+use std::path::{Path, PathBuf};
+
+use nerflex_sim::bake::sweep::ObjectViews;
+use nerflex_sim::baselines::Method;
+use nerflex_sim::capture::Capture;
+use nerflex_sim::device::Device;
+use nerflex_sim::eval::scale::Scale;
+use nerflex_sim::pipeline::{self, BakeStore, Baker, FieldStore, Input, Options, Quiet};
+use nerflex_sim::procedural::{
+    arrange, make_capture, CaptureSpec, Layout, ObjectKind, RenderOptions,
+};
+use nerflex_sim::simulate::{SimOptions, TurntableSpec};
+use nerflex_sim::train::trainer::{Level, TrainSettings};
+
+/// A capture of `kinds` at `size` px with `views` + 2 held-out views.
+fn capture(dir: &Path, kinds: &[ObjectKind], size: u32, views: usize) -> PathBuf {
+    let spec = CaptureSpec {
+        objects: arrange(kinds, Layout::Row, 1, 1.0),
+        layout: "row".into(),
+        preset: None,
+        seed: 5,
+        train_views: views,
+        test_views: 2,
+        size,
+        render: RenderOptions {
+            edge_samples: 0,
+            texture_samples: 0,
+            shadows: false,
+            ambient_occlusion: false,
+            ..RenderOptions::default()
+        },
+    };
+    let out = dir.join("capture");
+    make_capture(&spec, &out, &|| {}).unwrap();
+    out
+}
+
+/// A few seconds of training at most.
+fn tiny_training(steps: u32) -> TrainSettings {
+    TrainSettings {
+        levels: vec![
+            Level {
+                res: 16,
+                iters: steps,
+            },
+            Level {
+                res: 24,
+                iters: steps,
+            },
+        ],
+        batch: 1024,
+        ..TrainSettings::default()
+    }
+}
+
+fn tiny_baker() -> Baker {
+    let mut bake = Scale::Reduced.bake_settings();
+    bake.finetune.epochs = 1.0;
+    bake.fit.steps = 100;
+    bake.fit_samples = 4096;
+    Baker::trained(tiny_training(40), bake)
+}
+
+#[test]
+fn the_field_store_trains_once_then_loads() {
+    let dir = tempfile::tempdir().unwrap();
+    let cap = Capture::load(capture(dir.path(), &[ObjectKind::Mug], 32, 8)).unwrap();
+    let views = ObjectViews::from_capture(&cap, None).unwrap();
+    let store = FieldStore::new(dir.path().join("fields"));
+    let settings = tiny_training(30);
+    assert!(!store.contains(&views, &settings));
+
+    let calls = std::sync::atomic::AtomicUsize::new(0);
+    let count = |_: usize, _: u32, _: u32, _: f64| {
+        calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    };
+    let first = store.get_or_train(&views, &settings, &count).unwrap();
+    assert!(first.trained_now && first.train_s > 0.0);
+    assert!(first.path.is_file() && store.contains(&views, &settings));
+    let trained_calls = calls.load(std::sync::atomic::Ordering::Relaxed);
+    assert!(trained_calls > 0, "the trainer reported no progress");
+    let written = std::fs::metadata(&first.path).unwrap().modified().unwrap();
+
+    // The second request loads the stored file: no training step, the same
+    // grid, the file untouched.
+    let second = store.get_or_train(&views, &settings, &count).unwrap();
+    assert!(!second.trained_now);
+    assert_eq!(second.train_s, 0.0);
+    assert_eq!(
+        calls.load(std::sync::atomic::Ordering::Relaxed),
+        trained_calls
+    );
+    assert_eq!(*second.grid, *first.grid);
+    assert_eq!(second.key, first.key);
+    assert_eq!(
+        std::fs::metadata(&first.path).unwrap().modified().unwrap(),
+        written
+    );
+
+    // Other settings are another field.
+    let other = tiny_training(31);
+    assert_ne!(
+        FieldStore::key(&views, &other),
+        FieldStore::key(&views, &settings)
+    );
+    assert!(!store.contains(&views, &other));
+
+    // A damaged file is trained again and replaced, not trusted.
+    std::fs::write(&first.path, b"not a field").unwrap();
+    let third = store.get_or_train(&views, &settings, &count).unwrap();
+    assert!(third.trained_now);
+    assert!(nerflex_sim::train::io::load(&first.path).is_ok());
+}
+
+#[test]
+fn hull_and_trained_bakes_never_share_a_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let cap = Capture::load(capture(dir.path(), &[ObjectKind::Ball], 24, 3)).unwrap();
+    let views = ObjectViews::from_capture(&cap, None).unwrap();
+    let root = dir.path().join("bakes");
+    let hull = BakeStore::new(&root);
+    let trained = BakeStore::with_baker(&root, tiny_baker());
+    assert_eq!(hull.baker(), "hull");
+    assert_eq!(trained.baker(), "trained");
+    let (kh, kt) = (
+        hull.key(&views, 16, 5, false),
+        trained.key(&views, 16, 5, false),
+    );
+    assert_ne!(kh, kt);
+    assert!(kt.starts_with("ball-g16-p5-t"), "{kt}");
+    // The trained key follows the field's settings and the bake's.
+    let Baker::Trained(t) = tiny_baker() else {
+        unreachable!()
+    };
+    let other_field =
+        BakeStore::with_baker(&root, Baker::trained(tiny_training(41), t.bake.clone()));
+    let mut bake = t.bake.clone();
+    bake.finetune.epochs = 2.0;
+    let other_bake = BakeStore::with_baker(&root, Baker::trained(t.train.clone(), bake));
+    let keys = [
+        kt.clone(),
+        other_field.key(&views, 16, 5, false),
+        other_bake.key(&views, 16, 5, false),
+        trained.key(&views, 16, 7, false),
+        trained.key(&views, 16, 5, true),
+    ];
+    for (i, a) in keys.iter().enumerate() {
+        for b in &keys[i + 1..] {
+            assert_ne!(a, b);
+        }
+    }
+    // The hull key is the bake sweep's, as before this change.
+    assert_eq!(
+        kh,
+        nerflex_sim::bake::sweep::Cache::key(
+            &views,
+            &nerflex_sim::bake::BakeParams::new(16, 5),
+            false
+        )
+    );
+}
+
+fn tiny_options(store: &Path) -> Options {
+    let mut o = Options::reduced(store.to_path_buf());
+    o.baker = tiny_baker();
+    o.sample_grid = (8, 24);
+    o.sample_patch = (3, 5);
+    o.space_grid = vec![8, 12, 16, 24];
+    o.space_patch = vec![3, 4, 5];
+    o.baseline = (16, 5);
+    o.turntable = TurntableSpec {
+        angles: 6,
+        coverage_width: 40,
+        ..TurntableSpec::DEFAULT
+    };
+    o.sim = SimOptions {
+        frames: 100,
+        period_s: 7.5,
+    };
+    o
+}
+
+#[test]
+fn a_trained_run_bakes_from_fields_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let cap = capture(dir.path(), &[ObjectKind::Ball, ObjectKind::Box], 48, 8);
+    let store = dir.path().join("bakes");
+    let opts = tiny_options(&store);
+    let device = Device::builtin("pixel4").unwrap();
+    let out = dir.path().join("run");
+    let input = Input::Capture(cap);
+
+    let run = pipeline::run_one(&input, &opts, &out, Method::Dp, &device, None, &Quiet).unwrap();
+    assert_eq!(run.baker, "trained");
+    // One field per profiler network, trained now and kept in the store.
+    let networks = run.networks.len();
+    assert!(networks >= 1);
+    assert_eq!(run.times.fields_trained, networks);
+    assert!(run.times.train_s > 0.0);
+    let fields: Vec<_> = std::fs::read_dir(store.join("fields"))
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.path().extension().is_some_and(|x| x == "safetensors"))
+        .collect();
+    assert_eq!(fields.len(), networks);
+    // Every planned object has an asset from the trained baker.
+    for o in &run.realised.objects {
+        assert!(o.asset.join("mlp.json").is_file(), "{}", o.asset.display());
+        let entry = o.asset.parent().unwrap();
+        let details: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(entry.join("bake.json")).unwrap())
+                .unwrap();
+        assert_eq!(details["baker"], "trained");
+        assert!(o.file_bytes > 0);
+    }
+    let q = run.realised.quality;
+    assert!(q.ssim > 0.0 && q.ssim <= 1.0 && q.psnr.is_finite(), "{q:?}");
+    let text = run.report_text(1.0, false);
+    assert!(text.contains("trained baker"), "{text}");
+    assert!(text.contains("time: capture"), "{text}");
+    run.write(&out).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(json["baker"], "trained");
+    assert!(json["times"]["train_s"].as_f64().unwrap() > 0.0);
+
+    // A re-run finds every field and bake in the store.
+    let again = pipeline::run_one(&input, &opts, &out, Method::Dp, &device, None, &Quiet).unwrap();
+    assert_eq!(again.sample_bakes.0, 0, "sample bakes redone");
+    assert_eq!(again.times.fields_trained, 0);
+    assert_eq!(again.times.train_s, 0.0);
+    assert_eq!(again.realised.quality, run.realised.quality);
+
+    // The hull baker on the same store bakes anew (its keys differ) and
+    // trains nothing.
+    let mut hull = opts.clone();
+    hull.baker = Baker::Hull;
+    let h = pipeline::run_one(&input, &hull, &out, Method::Dp, &device, None, &Quiet).unwrap();
+    assert_eq!(h.baker, "hull");
+    assert_eq!(h.sample_bakes.1, 0, "a hull run reused trained bakes");
+    assert_eq!(h.times.train_s, 0.0);
+}
+
+#[test]
+fn a_trained_evaluation_names_its_baker_and_what_it_substitutes() {
+    use nerflex_sim::eval::{self, EvalOptions};
+    use nerflex_sim::procedural::Preset;
+    let dir = tempfile::tempdir().unwrap();
+    let mut p = tiny_options(&dir.path().join("bakes"));
+    p.size = 48;
+    p.train_views = 6;
+    p.test_views = 3;
+    let opts = EvalOptions {
+        pipeline: p,
+        scenes: vec![Preset::Scene1],
+        devices: vec![Device::builtin("pixel4").unwrap()],
+        real: vec![],
+        real_size: 64,
+        fps_scene: Preset::Scene1,
+    };
+    let out = dir.path().join("eval");
+    let report = eval::run(&opts, &out, None, &Quiet).unwrap();
+    assert_eq!(report.baker, "trained");
+    let baker = report
+        .settings
+        .iter()
+        .find(|(k, _)| k == "baker")
+        .map(|(_, v)| v.as_str())
+        .unwrap_or("");
+    assert!(
+        baker.starts_with("trained: fields 16³ × 40 steps → 24³ × 40 steps"),
+        "{baker}"
+    );
+    // Every method's row was measured on trained bakes; the fields of
+    // Single-NeRF (1), Block-NeRF (one per object) and the networks are in
+    // the store.
+    let s = &report.scenes[0];
+    assert!(s.rows.iter().any(|r| r.quality.is_some()));
+    let fields = std::fs::read_dir(dir.path().join("bakes/fields"))
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .is_ok_and(|e| e.path().extension().is_some_and(|x| x == "safetensors"))
+        })
+        .count();
+    assert_eq!(fields, 1 + 5 + s.networks.len(), "{:?}", s.networks);
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("the trained baker"), "no substitution line");
+    assert!(!md.contains("visual-hull bakes (no trained field)"));
+}
