@@ -6,8 +6,10 @@
 //! type the visual-hull baker produces, so export, sizes and measurement
 //! are shared). Stages, one module each:
 //!
-//! 1. [`extract`]: quads on the faces of the g³ voxels the field's surface
-//!    crosses, binary texel opacity at p×p per quad;
+//! 1. [`extract`]: in each g³ voxel the field's surface crosses, quads
+//!    tilted onto the surface (a plane fitted per axis and side; the voxel
+//!    faces remain as `extract_voxel_faces`), binary texel opacity at p×p
+//!    per quad where the texel's line meets the surface;
 //! 2. [`gbuffer`]: each training view rasterized once by the renderer's
 //!    own tile rasterizer into (quad, texel) ids; quads no training pixel
 //!    shows are dropped (as MobileNeRF drops invisible quads);

@@ -23,9 +23,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
-/// Part of every field key: raise it when the trainer changes what a given
-/// (views, settings) trains to, so stored fields (and the trained bakes
-/// keyed by them) are not reused.
+/// Part of every field key: raise it when the store's keying changes. The
+/// trainer's own [`crate::train::trainer::TRAINER_VERSION`] is hashed too,
+/// so a trainer that trains the same settings differently is not reused.
 pub const FIELD_KEY_VERSION: u32 = 1;
 
 /// A field from the store.
@@ -88,6 +88,7 @@ impl FieldStore {
         let mut h = Fnv64::default();
         h.write(b"nerflex field");
         h.write(&FIELD_KEY_VERSION.to_le_bytes());
+        h.write(&crate::train::trainer::TRAINER_VERSION.to_le_bytes());
         h.write(&views.content_hash.to_le_bytes());
         h.write(views.name.as_bytes());
         h.write(format!("{:?}", views.search_box).as_bytes());

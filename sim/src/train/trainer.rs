@@ -18,6 +18,11 @@ use crate::bake::carve::{self, Silhouettes, VoxelTest};
 use crate::bake::sweep::ObjectViews;
 use crate::bake::Aabb;
 
+/// Raised whenever training changes what it produces for the same
+/// [`TrainSettings`] (stores of trained fields key on it). 2: session 4's
+/// losses, pruning and TV schedule.
+pub const TRAINER_VERSION: u32 = 2;
+
 /// One level of the coarse-to-fine schedule.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Level {
