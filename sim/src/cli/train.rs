@@ -75,7 +75,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1e-10)]
     pub tv_color: f32,
     /// Apply the total variation every N steps (weights × N).
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 1)]
     pub tv_every: u32,
     /// Every N steps, skip cells whose opacity stays below
     /// `--prune-opacity` (0: never).

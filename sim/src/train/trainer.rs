@@ -119,7 +119,7 @@ impl Default for TrainSettings {
             tv_density: 1e-10,
             tv_color: 1e-10,
             prune_every: 100,
-            tv_every: 4,
+            tv_every: 1,
             prune_opacity: 1e-3,
         }
     }
