@@ -209,20 +209,27 @@ impl SparseGrid {
         (p - self.cube.min) * (self.res as f32 / (self.cube.max.x - self.cube.min.x))
     }
 
-    /// The corners of the sample at grid coordinates `u`, or `None` when
-    /// `u` is outside the grid or its cell stores nothing.
+    /// The cell (i, j, k) holding grid coordinates `u`, or `None` outside
+    /// the grid (the far faces belong to the last cell).
     #[inline(always)]
-    pub fn corners(&self, u: Vec3) -> Option<Corners> {
+    fn cell_of(&self, u: Vec3) -> Option<(u32, u32, u32)> {
         let r = self.res as f32;
         if !(u.x >= 0.0 && u.y >= 0.0 && u.z >= 0.0 && u.x <= r && u.y <= r && u.z <= r) {
             return None;
         }
         let rm = self.res - 1;
-        let (i, j, k) = (
+        Some((
             (u.x as u32).min(rm),
             (u.y as u32).min(rm),
             (u.z as u32).min(rm),
-        );
+        ))
+    }
+
+    /// The corners of the sample at grid coordinates `u`, or `None` when
+    /// `u` is outside the grid or its cell stores nothing.
+    #[inline(always)]
+    pub fn corners(&self, u: Vec3) -> Option<Corners> {
+        let (i, j, k) = self.cell_of(u)?;
         let res = self.res as usize;
         let c = (k as usize * res + j as usize) * res + i as usize;
         if self
@@ -238,16 +245,7 @@ impl SparseGrid {
     /// The corners at `u` whatever the cell's occupancy bit says (`None`
     /// only outside the grid): resampling reads pruned cells too.
     pub fn corners_any(&self, u: Vec3) -> Option<Corners> {
-        let r = self.res as f32;
-        if !(u.x >= 0.0 && u.y >= 0.0 && u.z >= 0.0 && u.x <= r && u.y <= r && u.z <= r) {
-            return None;
-        }
-        let rm = self.res - 1;
-        let (i, j, k) = (
-            (u.x as u32).min(rm),
-            (u.y as u32).min(rm),
-            (u.z as u32).min(rm),
-        );
+        let (i, j, k) = self.cell_of(u)?;
         Some(self.corners_in(u, i, j, k))
     }
 

@@ -77,6 +77,11 @@ pub fn save(
     };
     let vertex: Vec<u8> = grid.vertex.iter().flat_map(|v| v.to_le_bytes()).collect();
     let values: Vec<u8> = grid.values.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let cells: Vec<u8> = grid
+        .cell_bits
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
     let len = grid.record_len();
     let tensors = [
         (
@@ -87,6 +92,11 @@ pub fn save(
         (
             "values",
             TensorView::new(Dtype::F32, vec![grid.slots(), len], &values)
+                .map_err(|e| io(std::io::Error::other(e.to_string())))?,
+        ),
+        (
+            "cells",
+            TensorView::new(Dtype::U64, vec![grid.cell_bits.len()], &cells)
                 .map_err(|e| io(std::io::Error::other(e.to_string())))?,
         ),
     ];
@@ -260,6 +270,22 @@ pub fn load(path: &Path) -> Result<SavedField, FieldError> {
         cell_bits: Vec::new(),
     };
     grid.rebuild_cells();
+    // The cells training left marching (pruning clears some): a subset of
+    // those with a stored corner. Older files have none: all are marched.
+    if let Ok(t) = st.tensor("cells") {
+        let words = grid.cell_bits.len();
+        if t.dtype() != Dtype::U64 || t.shape() != [words] {
+            return Err(bad(format!(
+                "tensor `cells` is {:?} {:?}, expected U64 [{words}]",
+                t.dtype(),
+                t.shape()
+            )));
+        }
+        for (b, c) in grid.cell_bits.iter_mut().zip(t.data().chunks_exact(8)) {
+            let w = u64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
+            *b &= w;
+        }
+    }
     let settings = md
         .get("settings")
         .and_then(|s| serde_json::from_str(s).ok());
@@ -300,8 +326,17 @@ mod tests {
         save(&path, &g, &s, &r).unwrap();
         let back = load(&path).unwrap();
         assert_eq!(back.grid, g);
-        assert_eq!(back.settings, Some(s));
+        assert_eq!(back.settings, Some(s.clone()));
         assert_eq!(back.report.map(|r| r.total_s), Some(1.5));
+        // Pruned cells come back pruned.
+        let mut pruned = g.clone();
+        let len = pruned.record_len();
+        for v in pruned.values.chunks_mut(len) {
+            v[0] = -30.0;
+        }
+        assert!(pruned.prune_cells(1e-3) > 0);
+        save(&path, &pruned, &s, &r).unwrap();
+        assert_eq!(load(&path).unwrap().grid, pruned);
     }
 
     #[test]
