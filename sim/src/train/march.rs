@@ -429,6 +429,36 @@ mod tests {
         f64::from((c - target).length_squared())
     }
 
+    /// Checks `analytic` (one gradient per stored value) against central
+    /// differences of `loss_of` over every value of `grid`; at least 20
+    /// must be non-trivial.
+    fn check_against_fd(
+        grid: &SparseGrid,
+        analytic: &[f32],
+        what: &str,
+        loss_of: impl Fn(&SparseGrid) -> f64,
+    ) {
+        assert_eq!(analytic.len(), grid.values.len());
+        let mut checked = 0;
+        for (i, &an) in analytic.iter().enumerate() {
+            let h = 1e-2;
+            let mut a = grid.clone();
+            a.values[i] += h;
+            let mut b = grid.clone();
+            b.values[i] -= h;
+            let fd = (loss_of(&a) - loss_of(&b)) / (2.0 * f64::from(h));
+            let an = f64::from(an);
+            assert!(
+                (fd - an).abs() <= 2e-3 + 2e-2 * fd.abs().max(an.abs()),
+                "{what}, value {i}: analytic {an}, finite difference {fd}"
+            );
+            if an.abs() > 1e-4 {
+                checked += 1;
+            }
+        }
+        assert!(checked > 20, "{what}: only {checked} non-trivial gradients");
+    }
+
     /// The samples' (weight, colour) of a ray.
     fn samples_of(grid: &SparseGrid, ray: &GridRay, p: &MarchParams) -> (Vec<(f32, Vec3)>, f32) {
         let mut v = Vec::new();
@@ -512,29 +542,11 @@ mod tests {
             &mut scratch,
             &mut grads,
         );
-        let mut checked = 0;
-        for i in 0..grid.values.len() {
-            let h = 1e-2;
-            let mut a = grid.clone();
-            a.values[i] += h;
-            let mut b = grid.clone();
-            b.values[i] -= h;
-            // The held weights: the density's own gradient goes through
-            // the colour and entropy terms only, so perturbing a density
-            // must keep the unperturbed weights in the per-sample term.
-            let fd = (reg_loss(&a, &ray, &p, target, &reg, &fixed_w)
-                - reg_loss(&b, &ray, &p, target, &reg, &fixed_w))
-                / (2.0 * f64::from(h));
-            let an = f64::from(grads.grad[i]);
-            assert!(
-                (fd - an).abs() <= 2e-3 + 2e-2 * fd.abs().max(an.abs()),
-                "value {i}: analytic {an}, finite difference {fd}"
-            );
-            if an.abs() > 1e-4 {
-                checked += 1;
-            }
-        }
-        assert!(checked > 20, "only {checked} non-trivial gradients");
+        // The held weights: perturbing a density keeps the unperturbed
+        // weights in the per-sample term, as the backward pass holds them.
+        check_against_fd(&grid, &grads.grad, "regularised", |g| {
+            reg_loss(g, &ray, &p, target, &reg, &fixed_w)
+        });
     }
 
     /// Finite differences of the loss against every stored value.
@@ -567,25 +579,9 @@ mod tests {
                 &mut grads,
             );
             assert!(out.samples > 5);
-            let mut checked = 0;
-            for i in 0..grid.values.len() {
-                let h = 1e-2;
-                let mut a = grid.clone();
-                a.values[i] += h;
-                let mut b = grid.clone();
-                b.values[i] -= h;
-                let fd = (loss(&a, &ray, &p, target) - loss(&b, &ray, &p, target))
-                    / (2.0 * f64::from(h));
-                let an = f64::from(grads.grad[i]);
-                assert!(
-                    (fd - an).abs() <= 2e-3 + 2e-2 * fd.abs().max(an.abs()),
-                    "degree {degree}, value {i}: analytic {an}, finite difference {fd}"
-                );
-                if an.abs() > 1e-4 {
-                    checked += 1;
-                }
-            }
-            assert!(checked > 20, "only {checked} non-trivial gradients");
+            check_against_fd(&grid, &grads.grad, &format!("degree {degree}"), |g| {
+                loss(g, &ray, &p, target)
+            });
         }
     }
 
