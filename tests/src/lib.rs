@@ -2,3 +2,46 @@
 //! This library holds what they share.
 
 pub use nerflex_sim::data::{require_data, shared_data_dir};
+
+use nerflex_sim::procedural::{
+    arrange, make_capture, CaptureSpec, Layout, ObjectKind, RenderOptions,
+};
+use std::path::{Path, PathBuf};
+
+/// Renders without the slow effects (edge and texture supersampling,
+/// shadows, ambient occlusion): what the suite's small captures use.
+pub fn fast_render() -> RenderOptions {
+    RenderOptions {
+        edge_samples: 0,
+        texture_samples: 0,
+        shadows: false,
+        ambient_occlusion: false,
+        ..RenderOptions::default()
+    }
+}
+
+/// A small built-in capture of `kinds` in a row at `dir/name`: `train`
+/// training and `test` held-out views of `size` px from `seed`, rendered
+/// by [`fast_render`]. Panics on failure (tests only).
+pub fn small_capture(
+    dir: &Path,
+    name: &str,
+    kinds: &[ObjectKind],
+    seed: u64,
+    (train, test): (usize, usize),
+    size: u32,
+) -> PathBuf {
+    let spec = CaptureSpec {
+        objects: arrange(kinds, Layout::Row, 1, 1.0),
+        layout: "row".into(),
+        preset: None,
+        seed,
+        train_views: train,
+        test_views: test,
+        size,
+        render: fast_render(),
+    };
+    let out = dir.join(name);
+    make_capture(&spec, &out, &|| {}).expect("generating a test capture");
+    out
+}

@@ -8,31 +8,11 @@ use nerflex_sim::asset::Asset;
 use nerflex_sim::bake::carve::VoxelTest;
 use nerflex_sim::bake::{sweep, Geometry};
 use nerflex_sim::cli::bake::{run, Args, Reports};
-use nerflex_sim::procedural::{
-    arrange, make_capture, CaptureSpec, Layout, ObjectKind, RenderOptions,
-};
+use nerflex_sim::procedural::ObjectKind;
 
 fn capture(dir: &Path) -> PathBuf {
     let kinds = [ObjectKind::Pawn, ObjectKind::Ball];
-    let spec = CaptureSpec {
-        objects: arrange(&kinds, Layout::Row, 1, 1.0),
-        layout: "row".into(),
-        preset: None,
-        seed: 1,
-        train_views: 6,
-        test_views: 2,
-        size: 96,
-        render: RenderOptions {
-            edge_samples: 0,
-            texture_samples: 0,
-            shadows: false,
-            ambient_occlusion: false,
-            ..RenderOptions::default()
-        },
-    };
-    let out = dir.join("two");
-    make_capture(&spec, &out, &|| {}).unwrap();
-    out
+    nerflex_tests::small_capture(dir, "two", &kinds, 1, (6, 2), 96)
 }
 
 fn args(capture: &Path) -> Args {

@@ -9,34 +9,14 @@ use nerflex_sim::bake::sweep::{bake_and_measure, fixed_point_render, ObjectViews
 use nerflex_sim::bake::BakeParams;
 use nerflex_sim::capture::Capture;
 use nerflex_sim::metrics::Metrics;
-use nerflex_sim::procedural::{
-    arrange, make_capture, CaptureSpec, Layout, ObjectKind, RenderOptions,
-};
+use nerflex_sim::procedural::ObjectKind;
 use nerflex_sim::train::io;
 use nerflex_sim::train::trainer::{train, Level, TrainSettings};
 use nerflex_sim::train::view::render_view;
 
 /// One mug, 24 training and 4 held-out views at 64 px.
 fn capture(dir: &Path) -> PathBuf {
-    let spec = CaptureSpec {
-        objects: arrange(&[ObjectKind::Mug], Layout::Row, 1, 1.0),
-        layout: "row".into(),
-        preset: None,
-        seed: 3,
-        train_views: 24,
-        test_views: 4,
-        size: 64,
-        render: RenderOptions {
-            edge_samples: 0,
-            texture_samples: 0,
-            shadows: false,
-            ambient_occlusion: false,
-            ..RenderOptions::default()
-        },
-    };
-    let out = dir.join("mug");
-    make_capture(&spec, &out, &|| {}).unwrap();
-    out
+    nerflex_tests::small_capture(dir, "mug", &[ObjectKind::Mug], 3, (24, 4), 64)
 }
 
 /// Held-out PSNR margin of the field over the hull baker (dB). Measured

@@ -13,33 +13,13 @@ use nerflex_sim::capture::Capture;
 use nerflex_sim::device::Device;
 use nerflex_sim::eval::scale::Scale;
 use nerflex_sim::pipeline::{self, BakeStore, Baker, FieldStore, Input, Options, Quiet};
-use nerflex_sim::procedural::{
-    arrange, make_capture, CaptureSpec, Layout, ObjectKind, RenderOptions,
-};
+use nerflex_sim::procedural::ObjectKind;
 use nerflex_sim::simulate::{SimOptions, TurntableSpec};
 use nerflex_sim::train::trainer::{Level, TrainSettings};
 
 /// A capture of `kinds` at `size` px with `views` + 2 held-out views.
 fn capture(dir: &Path, kinds: &[ObjectKind], size: u32, views: usize) -> PathBuf {
-    let spec = CaptureSpec {
-        objects: arrange(kinds, Layout::Row, 1, 1.0),
-        layout: "row".into(),
-        preset: None,
-        seed: 5,
-        train_views: views,
-        test_views: 2,
-        size,
-        render: RenderOptions {
-            edge_samples: 0,
-            texture_samples: 0,
-            shadows: false,
-            ambient_occlusion: false,
-            ..RenderOptions::default()
-        },
-    };
-    let out = dir.join("capture");
-    make_capture(&spec, &out, &|| {}).unwrap();
-    out
+    nerflex_tests::small_capture(dir, "capture", kinds, 5, (views, 2), size)
 }
 
 /// A few seconds of training at most.
