@@ -193,7 +193,7 @@ fn surface_quads_cut_parallax_on_a_mug() {
     let (g, p) = (32, 5);
     let faces = extract::extract_voxel_faces(&s, g, p).unwrap();
     let surf = extract::extract(&s, g, p).unwrap();
-    let probe = |geo| trained::gbuffer::probe(&field, s.sigma, geo, p, &views).unwrap();
+    let probe = |geo| trained::gbuffer::probe(&s, geo, p, &views).unwrap();
     let (pf, ps) = (probe(&faces), probe(&surf));
     let far = |r: &trained::gbuffer::TexelProbe| r.far_pixels as f64 / r.pixels as f64;
     let cover = |r: &trained::gbuffer::TexelProbe| r.pixels as f64 / r.object_pixels as f64;
@@ -269,7 +269,7 @@ fn probe_geometries() {
                 }
             }
             for (label, geo) in rows {
-                let pr = trained::gbuffer::probe(&field, s.sigma, &geo, p, &views).unwrap();
+                let pr = trained::gbuffer::probe(&s, &geo, p, &views).unwrap();
                 eprintln!(
                     "{name} ({g}, {p}) {label:28}: {} quads, texel-point PSNR {:.2} dB (rays that hit: {:.2}, surface point {:.2}), far {:.4}, covers {:.4} of {} object pixels",
                     geo.quads.len(),

@@ -25,10 +25,13 @@
 //! trained field".
 
 pub mod analytic;
+pub mod depth;
 pub mod export;
 pub mod extract;
+pub mod featgrid;
 pub mod finetune;
 pub mod gbuffer;
+pub mod haze;
 pub mod init;
 pub mod net;
 
@@ -44,7 +47,7 @@ pub use finetune::{FinetuneReport, FinetuneSettings};
 pub use init::FitSettings;
 
 /// Version of the trained baker: part of sweep cache keys.
-pub const TRAINED_BAKER_VERSION: u32 = 1;
+pub const TRAINED_BAKER_VERSION: u32 = 2;
 
 /// Settings of a bake from a field.
 #[derive(Debug, Clone, PartialEq)]
@@ -55,6 +58,25 @@ pub struct TrainedParams {
     pub patch: u32,
     /// Opacity over half a field cell at which a point counts as inside.
     pub surface_alpha: f32,
+    /// Opacity over a box of `haze_span` field cells below which the field
+    /// is haze and holds no surface ([`haze::HazeMask`]; 0: no mask).
+    pub haze_alpha: f32,
+    /// Field cells per edge of that box (odd).
+    pub haze_span: u32,
+    /// Rounds of dropping the quads the training views show mostly
+    /// against the background (each one more G-buffer pass; 0: none).
+    pub carve_rounds: u32,
+    /// Where the quads go in each shell voxel.
+    pub surface: extract::SurfaceSettings,
+    /// Empty the texels outside the training views' visual hull.
+    pub hull_carve: bool,
+    /// Move the quads onto the field's half-transmittance depth
+    /// ([`depth::correct`]; one more G-buffer pass).
+    pub depth_correct: bool,
+    /// Cells per edge of the feature lattice over the object's cube
+    /// (independent of g and p: the continuous appearance the texels
+    /// sample; 512 ≈ a pixel of lego at 800 px).
+    pub feature_res: u32,
     /// G-buffer pixels the MLP's initial fit samples.
     pub fit_samples: usize,
     /// The MLP's initial fit.
@@ -70,6 +92,13 @@ impl TrainedParams {
             grid,
             patch,
             surface_alpha: 0.05,
+            feature_res: 256,
+            haze_alpha: 0.5,
+            haze_span: 3,
+            carve_rounds: 0,
+            depth_correct: false,
+            hull_carve: true,
+            surface: extract::SurfaceSettings::default(),
             fit_samples: 65_536,
             fit: FitSettings::default(),
             finetune: FinetuneSettings::default(),
@@ -82,6 +111,24 @@ impl TrainedParams {
             return Err(BakeError::BadParam(format!(
                 "surface alpha {} must be in (0, 1)",
                 self.surface_alpha
+            )));
+        }
+        if !(self.haze_alpha >= 0.0 && self.haze_alpha < 1.0) {
+            return Err(BakeError::BadParam(format!(
+                "--haze-alpha {} must be in [0, 1)",
+                self.haze_alpha
+            )));
+        }
+        if self.haze_span % 2 == 0 || self.haze_span > 15 {
+            return Err(BakeError::BadParam(format!(
+                "haze span {} must be odd and at most 15",
+                self.haze_span
+            )));
+        }
+        if !(16..=2048).contains(&self.feature_res) {
+            return Err(BakeError::BadParam(format!(
+                "--feature-res {} must be in 16..=2048",
+                self.feature_res
             )));
         }
         if !(self.finetune.epochs.is_finite() && self.finetune.epochs >= 0.0) {
@@ -101,7 +148,7 @@ pub struct TrainedTimes {
     pub extract_s: f64,
     /// G-buffers of every training view, quad visibility.
     pub gbuffer_s: f64,
-    /// Texel features and the MLP's fit from the field.
+    /// The feature lattice, its initial values and the MLP's fit.
     pub init_s: f64,
     /// The fine-tune.
     pub finetune_s: f64,
@@ -118,20 +165,25 @@ pub struct TrainedStats {
     pub full_voxels: u64,
     /// Quads with an opaque texel.
     pub extracted_quads: u64,
-    /// Of those, quads some training pixel shows (exported).
+    /// The move onto the field's visible depth.
+    pub depth: depth::DepthReport,
+    /// Quads dropped because the training views show them mostly against
+    /// the background.
+    pub carved_quads: u64,
+    /// Of the others, quads some training pixel shows (exported).
     pub kept_quads: u64,
     /// Opaque texels of the kept quads.
     pub opaque_texels: u64,
-    /// Texels some training pixel shows (fine-tuned).
+    /// Texels some training pixel shows.
     pub trained_texels: u64,
-    /// Opaque texels no training pixel shows that took the features of
-    /// the nearest fine-tuned texel of their quad (the others, on quads
-    /// with no fine-tuned texel, keep the field's).
-    pub filled_texels: u64,
+    /// Vertices of the feature lattice.
+    pub lattice_vertices: u64,
+    /// Of those, vertices some training pixel's texel reads.
+    pub reached_vertices: u64,
     /// Training pixels the geometry covers.
     pub train_pixels: u64,
-    /// Mean squared error (per channel, [0, 1] units) of the MLP's fit to
-    /// the field's colours.
+    /// Mean squared error (per channel, [0, 1] units) of the MLP's initial
+    /// fit to the training pixels.
     pub fit_mse: f32,
     /// The fine-tune.
     pub finetune: FinetuneReport,
@@ -152,23 +204,14 @@ fn asset_error(e: crate::asset::AssetError) -> BakeError {
     BakeError::BadParam(format!("building the export failed: {e}"))
 }
 
-/// Bakes the export at (g, p) from `field`, fine-tuned on `views` (the
-/// capture the field was trained on).
-pub fn bake(
-    field: &dyn RadianceField,
+/// The G-buffers of `geo`'s quads (through an export whose atlas carries
+/// only the texel opacity) on `views`.
+fn gbuffer_of(
+    geo: &extract::Geometry,
+    g: u32,
+    p: u32,
     views: &[BakeView<'_>],
-    params: &TrainedParams,
-) -> Result<TrainedBake, BakeError> {
-    params.validate()?;
-    super::validate_views(views)?;
-    let (g, p) = (params.grid, params.patch);
-    let p2 = (p * p) as usize;
-    let t0 = Instant::now();
-    let surface = extract::Surface::new(field, params.surface_alpha);
-    let geo = extract::extract(&surface, g, p).ok_or(BakeError::Empty)?;
-    let t1 = Instant::now();
-
-    // G-buffers through an export whose atlas carries only the opacity.
+) -> Result<gbuffer::GBuffers, BakeError> {
     let layout = AtlasLayout::new(geo.quads.len(), p);
     let mask: Vec<[u8; 8]> = geo
         .opacity
@@ -186,33 +229,117 @@ pub fn bake(
     .into_asset()
     .map_err(asset_error)?;
     drop(mask);
-    let gb = gbuffer::rasterize(&provisional, &layout, views)?;
-    drop(provisional);
+    gbuffer::rasterize(&provisional, &layout, views)
+}
+
+/// Bakes the export at (g, p) from `field`, fine-tuned on `views` (the
+/// capture the field was trained on).
+pub fn bake(
+    field: &dyn RadianceField,
+    views: &[BakeView<'_>],
+    params: &TrainedParams,
+) -> Result<TrainedBake, BakeError> {
+    params.validate()?;
+    super::validate_views(views)?;
+    let (g, p) = (params.grid, params.patch);
+    let p2 = (p * p) as usize;
+    let t0 = Instant::now();
+    let mask = (params.haze_alpha > 0.0)
+        .then(|| haze::HazeMask::new(field, params.haze_span, params.haze_alpha));
+    let mut surface = extract::Surface::new(field, params.surface_alpha);
+    if let Some(m) = &mask {
+        surface = surface.masked(m);
+    }
+    let geo = extract::extract_with(&surface, g, p, &params.surface).ok_or(BakeError::Empty)?;
+    // A point on an opaque object projects onto its silhouette in every
+    // view: texels that some training view shows as background go.
+    let mut geo = geo;
+    if params.hull_carve {
+        let sil = super::carve::Silhouettes::new(views);
+        let hull = super::carve::texel_occupancy_hull(&sil, &geo.quads, p);
+        for (o, h) in geo.opacity.iter_mut().zip(hull) {
+            *o &= h;
+        }
+    }
+    let t1 = Instant::now();
+
+    // G-buffers through an export whose atlas carries only the opacity;
+    // quads the training views show mostly against the background are
+    // haze the field drew in the background's colour: drop them and look
+    // again (what they hid may be more of it).
+    let mut dropped_quads = 0u64;
+    let mut round = 0;
+    let gb = loop {
+        let gb = gbuffer_of(&geo, g, p, views)?;
+        round += 1;
+        if round > params.carve_rounds {
+            break gb;
+        }
+        let nq = geo.quads.len();
+        let mut votes = vec![0i32; nq];
+        for px in &gb.pixels {
+            votes[px.texel as usize / p2] += 1;
+        }
+        for &t in &gb.background {
+            votes[t as usize / p2] -= 1;
+        }
+        let mut dropped = 0u64;
+        for (q, &v) in votes.iter().enumerate() {
+            if v < 0 {
+                geo.opacity[q * p2..(q + 1) * p2].fill(false);
+                dropped += 1;
+            }
+        }
+        dropped_quads += dropped;
+        if dropped == 0 {
+            break gb;
+        }
+    };
+    // Onto the depth the field's renders show, then look once more.
+    let (gb, depth_report) = if params.depth_correct {
+        let r = depth::correct(field, &mut geo.quads, p, geo.voxel, &gb, views);
+        drop(gb);
+        (gbuffer_of(&geo, g, p, views)?, r)
+    } else {
+        (gb, depth::DepthReport::default())
+    };
 
     // Keep the quads some training pixel shows.
     let nq = geo.quads.len();
     let mut hits = vec![0u32; nq];
-    let mut dir_sum = vec![Vec3::ZERO; nq];
     for px in &gb.pixels {
-        let q = px.texel as usize / p2;
-        hits[q] += 1;
-        dir_sum[q] += Vec3::from_array(px.dir);
+        hits[px.texel as usize / p2] += 1;
     }
     let mut new_index = vec![u32::MAX; nq];
     let mut quads = Vec::new();
     let mut opacity = Vec::new();
-    let mut dirs = Vec::new();
     for q in 0..nq {
         if hits[q] > 0 {
             new_index[q] = quads.len() as u32;
             quads.push(geo.quads[q]);
             opacity.extend_from_slice(&geo.opacity[q * p2..(q + 1) * p2]);
-            dirs.push(dir_sum[q].normalize_or(-geo.quads[q].normal));
         }
     }
     let t2 = Instant::now();
 
-    // One trained slot per texel a pixel shows.
+    // The feature lattice around every opaque texel's point.
+    let texel_point = |t: usize| {
+        let (q, i) = (t / p2, (t % p2) as u32);
+        extract::texel_point(&quads[q], p, i % p, i / p)
+    };
+    let points: Vec<Vec3> = {
+        use rayon::prelude::*;
+        opacity
+            .par_iter()
+            .enumerate()
+            .filter(|(_, &o)| o)
+            .map(|(t, _)| texel_point(t))
+            .collect()
+    };
+    let mut grid = featgrid::FeatureGrid::new(&geo.cube, params.feature_res, &points);
+    drop(points);
+
+    // One entry per texel a pixel shows: how it reads the lattice.
     let mut slot_of = vec![u32::MAX; opacity.len()];
     let mut slot_texel: Vec<u32> = Vec::new();
     let pixels: Vec<finetune::TrainPixel> = gb
@@ -235,42 +362,26 @@ pub fn bake(
     drop(gb);
     drop(slot_of);
     drop(new_index);
-    let mut trained = vec![false; opacity.len()];
-    for &t in &slot_texel {
-        trained[t as usize] = true;
-    }
-    // Features from the field, for the texels that keep them: the trained
-    // ones (their starting point) and those of quads without a trained
-    // texel (the others take a trained neighbour's after the fine-tune).
-    let need: Vec<bool> = trained
-        .chunks(p2)
-        .flat_map(|tr| {
-            let any = tr.iter().any(|&t| t);
-            tr.iter().map(move |&t| t || !any)
-        })
-        .collect();
-    let mut texels = init::texel_bytes(field, &quads, &opacity, &need, p, &dirs);
-    drop(need);
-    let mut features: Vec<[f32; net::FEATURES]> = slot_texel
-        .iter()
-        .map(|&t| init::decode_bytes(&texels[t as usize]))
-        .collect();
+    let taps: Vec<featgrid::Taps> = {
+        use rayon::prelude::*;
+        slot_texel
+            .par_iter()
+            .map(|&t| grid.taps(texel_point(t as usize)))
+            .collect::<Option<_>>()
+            .ok_or_else(|| BakeError::BadParam("a shown texel lies outside the feature lattice".into()))?
+    };
+    let (values, reached) = init::splat(&grid, &pixels, &taps, field);
+    grid.values = values;
     let stride = (pixels.len() / params.fit_samples.max(1)).max(1);
     let samples: Vec<init::FitSample> = {
         use rayon::prelude::*;
         pixels
             .par_iter()
             .step_by(stride)
-            .map(|px| {
-                let t = slot_texel[px.slot as usize] as usize;
-                let q = &quads[t / p2];
-                let x = extract::texel_point(q, p, (t % p2) as u32 % p, (t % p2) as u32 / p);
-                let c = field.color(x, Vec3::from_array(px.dir));
-                init::FitSample {
-                    feat: net::quantise(&features[px.slot as usize]),
-                    dir: px.dir,
-                    target: c.clamp(Vec3::ZERO, Vec3::ONE).to_array(),
-                }
+            .map(|px| init::FitSample {
+                feat: net::quantise(&taps[px.slot as usize].gather(&grid.values)),
+                dir: px.dir,
+                target: px.target,
             })
             .collect()
     };
@@ -278,15 +389,25 @@ pub fn bake(
     drop(samples);
     let t3 = Instant::now();
 
-    let report = finetune::finetune(&pixels, &mut features, &mut mlp, &params.finetune);
+    let report = finetune::finetune(&pixels, &taps, &mut grid.values, &mut mlp, &params.finetune);
+    drop(taps);
     let t4 = Instant::now();
 
-    for (f, &t) in features.iter().zip(&slot_texel) {
-        let (f0, f1) = net::to_bytes(f, true);
-        texels[t as usize] = [f0[0], f0[1], f0[2], f0[3], f1[0], f1[1], f1[2], f1[3]];
-    }
-    let filled = fill_from_trained(&mut texels, &trained, &opacity, p);
-    drop(trained);
+    // Every opaque texel reads the lattice at its point.
+    let texels: Vec<[u8; 8]> = {
+        use rayon::prelude::*;
+        opacity
+            .par_iter()
+            .enumerate()
+            .map(|(t, &o)| {
+                let Some(tp) = o.then(|| grid.taps(texel_point(t))).flatten() else {
+                    return [0; 8];
+                };
+                let (f0, f1) = net::to_bytes(&tp.gather(&grid.values), true);
+                [f0[0], f0[1], f0[2], f0[3], f1[0], f1[1], f1[2], f1[3]]
+            })
+            .collect()
+    };
     let layout = AtlasLayout::new(quads.len(), p);
     let atlas = export::atlas(&layout, &texels);
     let t5 = Instant::now();
@@ -303,10 +424,13 @@ pub fn bake(
         shell_voxels: geo.shell_voxels,
         full_voxels: geo.full_voxels,
         extracted_quads: nq as u64,
+        carved_quads: dropped_quads,
+        depth: depth_report,
         kept_quads: quads.len() as u64,
         opaque_texels: opaque,
         trained_texels: slot_texel.len() as u64,
-        filled_texels: filled,
+        lattice_vertices: grid.len() as u64,
+        reached_vertices: reached as u64,
         train_pixels: pixels.len() as u64,
         fit_mse,
         finetune: report,
@@ -334,71 +458,4 @@ pub fn bake(
         },
     };
     Ok(TrainedBake { baked, stats })
-}
-
-/// Gives each opaque texel no training pixel showed the bytes of the
-/// nearest fine-tuned texel of the same quad (breadth-first over the p×p
-/// grid, 4-neighbours: nearest in city-block distance): after the
-/// fine-tune the MLP reads features as the fine-tune left them, so a
-/// neighbour's code is a better guess than the field's initial one
-/// (held-out views see such texels at patch edges and grazing angles).
-/// Returns how many were filled.
-fn fill_from_trained(texels: &mut [[u8; 8]], trained: &[bool], opacity: &[bool], p: u32) -> u64 {
-    use rayon::prelude::*;
-    let p = p as usize;
-    let p2 = p * p;
-    texels
-        .par_chunks_mut(p2)
-        .zip(trained.par_chunks(p2).zip(opacity.par_chunks(p2)))
-        .map_init(
-            || (Vec::with_capacity(p2), vec![false; p2]),
-            |(queue, reached), (tex, (tr, op))| {
-                queue.clear();
-                for (t, r) in reached.iter_mut().enumerate() {
-                    *r = tr[t];
-                    if tr[t] {
-                        queue.push(t);
-                    }
-                }
-                if queue.is_empty() {
-                    return 0;
-                }
-                let mut n = 0;
-                let mut head = 0;
-                while head < queue.len() {
-                    let t = queue[head];
-                    head += 1;
-                    let (x, y) = (t % p, t / p);
-                    let mut visit = |u: usize| {
-                        if !reached[u] {
-                            reached[u] = true;
-                            // Empty texels pass the code on, then are cleared.
-                            tex[u] = tex[t];
-                            n += u64::from(op[u]);
-                            queue.push(u);
-                        }
-                    };
-                    if x > 0 {
-                        visit(t - 1);
-                    }
-                    if x + 1 < p {
-                        visit(t + 1);
-                    }
-                    if y > 0 {
-                        visit(t - p);
-                    }
-                    if y + 1 < p {
-                        visit(t + p);
-                    }
-                }
-                // Empty texels carried codes only to pass them on: clear them.
-                for (b, &o) in tex.iter_mut().zip(op.iter()) {
-                    if !o {
-                        *b = [0; 8];
-                    }
-                }
-                n
-            },
-        )
-        .sum()
 }

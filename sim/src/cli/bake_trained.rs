@@ -40,6 +40,37 @@ pub struct TrainedArgs {
     /// a few cells; 0.05 keeps lego's surface, see docs/baking.md).
     #[arg(long, default_value_t = 0.05)]
     pub surface_alpha: f32,
+    /// Opacity over a box of 3 field cells below which the field counts as
+    /// haze and gets no surface (0: no such mask; see docs/baking.md).
+    #[arg(long, default_value_t = 0.5)]
+    pub haze_alpha: f32,
+    /// A voxel side gets a quad when it sees this fraction of the surface
+    /// its best side sees (1: one quad per voxel).
+    #[arg(long, default_value_t = 0.5)]
+    pub surface_keep: f32,
+    /// Quads overlap their neighbours by this fraction of a voxel.
+    #[arg(long, default_value_t = 0.125)]
+    pub surface_grow: f32,
+    /// Keep texels outside the training views' visual hull.
+    #[arg(long)]
+    pub no_hull_carve: bool,
+    /// Move the quads onto the field's half-transmittance depth (one more
+    /// G-buffer pass; +0.03 dB on lego, docs/baking.md).
+    #[arg(long)]
+    pub depth_correct: bool,
+    /// Rounds of dropping quads the training views show mostly against the
+    /// background (one G-buffer pass each; the hull carve leaves little).
+    #[arg(long, default_value_t = 0)]
+    pub carve_rounds: u32,
+    /// Cells per edge of the feature lattice the fine-tune learns and the
+    /// texels sample.
+    #[arg(long, default_value_t = 256)]
+    pub feature_res: u32,
+    /// Before baking, print how well the extracted geometry's texel points
+    /// carry the training images (`gbuffer::probe`: the field's colour at
+    /// each shown texel's point against the pixel; a parallax measure).
+    #[arg(long)]
+    pub probe: bool,
 }
 
 fn parse_baker(s: &str) -> Result<Baker, String> {
@@ -72,6 +103,13 @@ impl TrainedArgs {
         let mut p = TrainedParams::new(grid, patch);
         p.finetune.epochs = self.epochs;
         p.surface_alpha = self.surface_alpha;
+        p.haze_alpha = self.haze_alpha;
+        p.feature_res = self.feature_res;
+        p.depth_correct = self.depth_correct;
+        p.carve_rounds = self.carve_rounds;
+        p.hull_carve = !self.no_hull_carve;
+        p.surface.keep = self.surface_keep;
+        p.surface.grow = self.surface_grow;
         p
     }
 }
@@ -164,16 +202,23 @@ pub fn bake(
         .as_deref()
         .context("--baker trained needs --field")?;
     let field = load_field(spec, capture, object)?;
+    if args.probe {
+        probe(args, field.as_ref(), views, grid, patch)?;
+    }
     let tb = trained::bake(field.as_ref(), views, &args.params(grid, patch))?;
     let s = &tb.stats;
     let t = &s.times;
     println!(
-        "trained: {} shell + {} full voxels, {} quads extracted, {} kept (seen by a training pixel)",
-        s.shell_voxels, s.full_voxels, s.extracted_quads, s.kept_quads
+        "trained: {} shell + {} full voxels, {} quads extracted, {} dropped (seen mostly against the background), {} kept (seen by a training pixel)",
+        s.shell_voxels, s.full_voxels, s.extracted_quads, s.carved_quads, s.kept_quads
     );
     println!(
-        "trained: {} opaque texels, {} fine-tuned, {} filled from a fine-tuned neighbour; {} training pixels; MLP fit to the field: MSE {:.5}",
-        s.opaque_texels, s.trained_texels, s.filled_texels, s.train_pixels, s.fit_mse
+        "trained: {} opaque texels, {} shown by a training pixel; feature lattice {} vertices, {} reached; {} training pixels; MLP's initial fit: MSE {:.5}",
+        s.opaque_texels, s.trained_texels, s.lattice_vertices, s.reached_vertices, s.train_pixels, s.fit_mse
+    );
+    println!(
+        "trained: {} quads moved onto the field's half-transmittance depth (mean {:.2} voxels; {} pixels with a crossing)",
+        s.depth.moved, s.depth.mean_shift, s.depth.crossings
     );
     println!(
         "trained: fine-tune {} steps, {} pixel steps, training PSNR {:.2} → {:.2} dB",
@@ -184,4 +229,37 @@ pub fn bake(
         t.extract_s, t.gbuffer_s, t.init_s, t.finetune_s, t.atlas_s
     );
     Ok(tb.baked)
+}
+
+/// Prints [`trained::gbuffer::probe`] of the geometry the bake would use.
+fn probe(
+    args: &TrainedArgs,
+    field: &dyn RadianceField,
+    views: &[BakeView<'_>],
+    grid: u32,
+    patch: u32,
+) -> anyhow::Result<()> {
+    let t0 = std::time::Instant::now();
+    let params = args.params(grid, patch);
+    let mask = (params.haze_alpha > 0.0).then(|| {
+        trained::haze::HazeMask::new(field, params.haze_span, params.haze_alpha)
+    });
+    let mut surface = trained::extract::Surface::new(field, params.surface_alpha);
+    if let Some(m) = &mask {
+        surface = surface.masked(m);
+    }
+    let geo = trained::extract::extract_with(&surface, grid, patch, &params.surface)
+        .context("--probe: the field has no surface at this --surface-alpha")?;
+    let pr = trained::gbuffer::probe(&surface, &geo, patch, views)?;
+    println!(
+        "probe: texel points {:.2} dB over {} covered of {} object pixels; on rays meeting the inside: texel points {:.2} dB, surface points {:.2} dB, {} texel points over a voxel off ({:.1} s)",
+        pr.psnr,
+        pr.pixels,
+        pr.object_pixels,
+        pr.hit_psnr,
+        pr.surface_psnr,
+        pr.far_pixels,
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(())
 }

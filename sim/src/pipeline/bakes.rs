@@ -371,7 +371,8 @@ fn trained_details(s: &trained::TrainedStats, field: &StoredField) -> serde_json
         "kept_quads": s.kept_quads,
         "opaque_texels": s.opaque_texels,
         "trained_texels": s.trained_texels,
-        "filled_texels": s.filled_texels,
+        "lattice_vertices": s.lattice_vertices,
+        "reached_vertices": s.reached_vertices,
         "train_pixels": s.train_pixels,
         "fit_mse": s.fit_mse,
         "finetune": {

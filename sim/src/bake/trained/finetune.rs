@@ -2,14 +2,15 @@
 //! through the renderer's deferred shading, as MobileNeRF's last stage does.
 //!
 //! Every training pixel the geometry covers shows one texel (the G-buffer,
-//! [`super::gbuffer`]); its colour is the MLP of that texel's features,
-//! quantised to 8 bits as the atlas stores them (straight-through: the
-//! gradient passes the rounding unchanged), and the pixel's direction. The
-//! loss is the mean squared error against the image composited over white.
-//! Adam updates the MLP every batch and each texel's features whenever the
-//! batch holds one of its pixels (per-texel step counts for the bias
-//! correction, so rarely seen texels are not under-corrected). Batches are
-//! split over the cores with rayon.
+//! [`super::gbuffer`]); the texel's features are the feature lattice read
+//! at its point ([`super::featgrid`]), its colour the MLP of those
+//! features, quantised to 8 bits as the atlas stores them
+//! (straight-through: the gradient passes the rounding unchanged), and the
+//! pixel's direction. The loss is the mean squared error against the image
+//! composited over white. Adam updates the MLP every batch and each
+//! lattice vertex whenever the batch reaches it (per-vertex step counts for
+//! the bias correction, so rarely reached vertices are not
+//! under-corrected). Batches are split over the cores with rayon.
 
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
@@ -17,14 +18,15 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use std::time::Instant;
 
+use super::featgrid::Taps;
 use super::net::{self, Adam, FEATURES};
 use nerflex_core::shader::MlpWeights;
 
-/// A training pixel: the trained-feature slot it shows, its direction and
-/// its target colour.
+/// A training pixel: the texel it shows, its direction and its target
+/// colour.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrainPixel {
-    /// Index into the feature slots.
+    /// Index into the shown texels' [`Taps`].
     pub slot: u32,
     /// View direction the renderer feeds the MLP here.
     pub dir: [f32; 3],
@@ -39,7 +41,7 @@ pub struct FinetuneSettings {
     pub epochs: f32,
     /// Pixels per Adam step.
     pub batch: usize,
-    /// Learning rate of the texel features (decays ×0.1 over the run).
+    /// Learning rate of the lattice's features (decays ×0.1 over the run).
     pub lr_features: f32,
     /// Learning rate of the MLP (decays ×0.1 over the run).
     pub lr_mlp: f32,
@@ -52,7 +54,7 @@ impl Default for FinetuneSettings {
         Self {
             epochs: 3.0,
             batch: 8192,
-            lr_features: 0.03,
+            lr_features: 0.01,
             lr_mlp: 3e-3,
             seed: 7,
         }
@@ -78,7 +80,8 @@ pub struct FinetuneReport {
 /// pixels (every `stride`-th), as the renderer would show them.
 pub fn train_psnr(
     pixels: &[TrainPixel],
-    features: &[[f32; FEATURES]],
+    taps: &[Taps],
+    values: &[[f32; FEATURES]],
     mlp: &MlpWeights,
     stride: usize,
 ) -> f64 {
@@ -86,7 +89,8 @@ pub fn train_psnr(
         .par_iter()
         .step_by(stride.max(1))
         .map(|px| {
-            let x = net::input(&net::quantise(&features[px.slot as usize]), px.dir);
+            let f = taps[px.slot as usize].gather(values);
+            let x = net::input(&net::quantise(&f), px.dir);
             let y = net::to_u8(net::forward(mlp, &x).y);
             let se: f64 = (0..3)
                 .map(|k| (f64::from(y[k]) - f64::from(px.target[k]) * 255.0).powi(2))
@@ -101,7 +105,7 @@ pub fn train_psnr(
     10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10()
 }
 
-/// Per-slot Adam state of the features.
+/// Per-vertex Adam state of the features.
 struct FeatureAdam {
     m: Vec<[f32; FEATURES]>,
     v: Vec<[f32; FEATURES]>,
@@ -117,7 +121,8 @@ struct BatchGrad {
 fn batch_grad(
     batch: &[u32],
     pixels: &[TrainPixel],
-    features: &[[f32; FEATURES]],
+    taps: &[Taps],
+    values: &[[f32; FEATURES]],
     mlp: &MlpWeights,
 ) -> BatchGrad {
     let scale = 2.0 / (3 * batch.len()) as f32;
@@ -130,7 +135,8 @@ fn batch_grad(
             };
             for &i in chunk {
                 let px = &pixels[i as usize];
-                let x = net::input(&net::quantise(&features[px.slot as usize]), px.dir);
+                let f = taps[px.slot as usize].gather(values);
+                let x = net::input(&net::quantise(&f), px.dir);
                 let a = net::forward(mlp, &x);
                 let dy = std::array::from_fn(|k| scale * (a.y[k] - px.target[k]));
                 let df = net::backward(mlp, &a, dy, &mut g.mlp);
@@ -151,16 +157,18 @@ fn batch_grad(
         )
 }
 
-/// Fine-tunes `features` (one per slot) and `mlp` on `pixels`.
+/// Fine-tunes the lattice's `values` (which the shown texels read through
+/// `taps`) and `mlp` on `pixels`.
 pub fn finetune(
     pixels: &[TrainPixel],
-    features: &mut [[f32; FEATURES]],
+    taps: &[Taps],
+    values: &mut [[f32; FEATURES]],
     mlp: &mut MlpWeights,
     s: &FinetuneSettings,
 ) -> FinetuneReport {
     let t0 = Instant::now();
     let stride = (pixels.len() / 1_000_000).max(1);
-    let psnr_before = train_psnr(pixels, features, mlp, stride);
+    let psnr_before = train_psnr(pixels, taps, values, mlp, stride);
     let n = pixels.len();
     let batch = s.batch.max(1);
     let total = (s.epochs.max(0.0) as f64 * n as f64).round() as u64;
@@ -170,14 +178,14 @@ pub fn finetune(
     let mut pos = n;
     let mut params = net::flatten(mlp);
     let mut adam = Adam::new(params.len());
-    let slots = features.len();
+    let slots = values.len();
     let mut st = FeatureAdam {
         m: vec![[0.0; FEATURES]; slots],
         v: vec![[0.0; FEATURES]; slots],
         t: vec![0; slots],
     };
     let mut grad = vec![[0f32; FEATURES]; slots];
-    // The step (+1) in which each slot was last touched.
+    // The step (+1) in which each vertex was last touched.
     let mut stamp = vec![0u32; slots];
     let mut touched: Vec<u32> = Vec::with_capacity(batch);
     let mut idx: Vec<u32> = Vec::with_capacity(batch);
@@ -194,22 +202,22 @@ pub fn finetune(
             pos += take;
         }
         pixel_steps += idx.len() as u64;
-        let g = batch_grad(&idx, pixels, features, mlp);
+        let g = batch_grad(&idx, pixels, taps, values, mlp);
         let decay = 0.1f32.powf(step as f32 / steps.max(1) as f32);
         // MLP.
         adam.step(&mut params, &net::flatten(&g.mlp), s.lr_mlp * decay);
         *mlp = net::unflatten(&params);
-        // Features: sum per slot, then one Adam step per touched slot.
+        // Features: sum per vertex, then one Adam step per touched vertex.
         touched.clear();
         for (slot, df) in &g.feats {
-            let gs = &mut grad[*slot as usize];
-            if stamp[*slot as usize] != step as u32 + 1 {
-                stamp[*slot as usize] = step as u32 + 1;
-                touched.push(*slot);
+            let t = &taps[*slot as usize];
+            for &v in &t.slot {
+                if stamp[v as usize] != step as u32 + 1 {
+                    stamp[v as usize] = step as u32 + 1;
+                    touched.push(v);
+                }
             }
-            for c in 0..FEATURES {
-                gs[c] += df[c];
-            }
+            t.scatter(df, &mut grad);
         }
         let lr = s.lr_features * decay;
         for &slot in &touched {
@@ -219,7 +227,7 @@ pub fn finetune(
             let t = st.t[k].min(10_000) as i32;
             let c1 = 1.0 - net::BETA1.powi(t);
             let c2 = 1.0 - net::BETA2.powi(t);
-            let (m, v, f) = (&mut st.m[k], &mut st.v[k], &mut features[k]);
+            let (m, v, f) = (&mut st.m[k], &mut st.v[k], &mut values[k]);
             for c in 0..FEATURES {
                 m[c] = net::BETA1 * m[c] + (1.0 - net::BETA1) * gk[c];
                 v[c] = net::BETA2 * v[c] + (1.0 - net::BETA2) * gk[c] * gk[c];
@@ -228,7 +236,7 @@ pub fn finetune(
             net::clamp(f);
         }
     }
-    let psnr_after = train_psnr(pixels, features, mlp, stride);
+    let psnr_after = train_psnr(pixels, taps, values, mlp, stride);
     FinetuneReport {
         steps,
         pixel_steps,

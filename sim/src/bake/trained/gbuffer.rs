@@ -34,6 +34,9 @@ pub struct GBuffers {
     pub pixels: Vec<GPixel>,
     /// Covered pixels per view.
     pub per_view: Vec<usize>,
+    /// The texel each covered pixel of the background (object coverage
+    /// below 50 %) shows: votes against the geometry there.
+    pub background: Vec<u32>,
 }
 
 /// Rasterizes every view of `asset` (quads in atlas order, `layout` the
@@ -53,7 +56,8 @@ pub fn rasterize(
         })
         .collect();
     let p = layout.patch;
-    let per: Vec<Result<Vec<GPixel>, BakeError>> = views
+    type ViewPixels = (Vec<GPixel>, Vec<u32>);
+    let per: Vec<Result<ViewPixels, BakeError>> = views
         .par_iter()
         .enumerate()
         .map(|(vi, v)| {
@@ -82,6 +86,7 @@ pub fn rasterize(
             }
             let mut tile = Box::new(TileRenderer::<TILE, TILE>::new());
             let mut out = Vec::new();
+            let mut background = Vec::new();
             for (b, bin) in bins.iter().enumerate() {
                 if bin.is_empty() {
                     continue;
@@ -113,32 +118,35 @@ pub fn rasterize(
                             return;
                         }
                     }
-                    // Where the image shows (mostly) background the geometry
-                    // is off by a texel at most: a white target there would
-                    // only teach a surface texel to be white (geometry is
-                    // fixed), so such pixels give no target.
+                    // Where the image shows (mostly) background a white
+                    // target would only teach a surface texel to be white
+                    // (geometry is fixed here): such pixels give no target,
+                    // only a vote against the geometry they show.
                     let cov = v.coverage(x, y);
+                    let texel = s.quad * p * p + ly * p + lx;
                     if cov < 128 {
+                        background.push(texel);
                         return;
                     }
                     let px = v.image.get_pixel(x, y).0;
                     let a = f32::from(cov) / 255.0;
                     let c = |k: usize| f32::from(px[k]) / 255.0 * a + (1.0 - a);
                     out.push(GPixel {
-                        texel: s.quad * p * p + ly * p + lx,
+                        texel,
                         dir: view.pixel_dir_f32(x, y),
                         target: [c(0), c(1), c(2)],
                     });
                 });
             }
-            Ok(out)
+            Ok((out, background))
         })
         .collect();
     let mut g = GBuffers::default();
     for r in per {
-        let px = r?;
+        let (px, bg) = r?;
         g.per_view.push(px.len());
         g.pixels.extend(px);
+        g.background.extend(bg);
     }
     Ok(g)
 }
@@ -169,11 +177,10 @@ pub struct TexelProbe {
     pub object_pixels: u64,
 }
 
-/// [`TexelProbe`] of `geo` (at patch `p`) on `views`; `surface_sigma`
-/// is the inside test's density ([`super::extract::Surface::sigma`]).
+/// [`TexelProbe`] of `geo` (at patch `p`) on `views`; `surf` is the
+/// inside test `geo` was extracted with.
 pub fn probe(
-    field: &dyn crate::train::field::RadianceField,
-    surface_sigma: f32,
+    surf: &super::extract::Surface<'_>,
     geo: &super::extract::Geometry,
     p: u32,
     views: &[BakeView<'_>],
@@ -198,10 +205,7 @@ pub fn probe(
     .map_err(|e| BakeError::BadParam(format!("building the probe's asset failed: {e}")))?;
     let gb = rasterize(&asset, &layout, views)?;
     let p2 = p * p;
-    let surf = super::extract::Surface {
-        field,
-        sigma: surface_sigma,
-    };
+    let field = surf.field;
     let origins: Vec<Vec3> = gb
         .per_view
         .iter()
