@@ -31,7 +31,6 @@ pub mod extract;
 pub mod featgrid;
 pub mod finetune;
 pub mod gbuffer;
-pub mod haze;
 pub mod init;
 pub mod net;
 
@@ -58,11 +57,6 @@ pub struct TrainedParams {
     pub patch: u32,
     /// Opacity over half a field cell at which a point counts as inside.
     pub surface_alpha: f32,
-    /// Opacity over a box of `haze_span` field cells below which the field
-    /// is haze and holds no surface ([`haze::HazeMask`]; 0: no mask).
-    pub haze_alpha: f32,
-    /// Field cells per edge of that box (odd).
-    pub haze_span: u32,
     /// Rounds of dropping the quads the training views show mostly
     /// against the background (each one more G-buffer pass; 0: none).
     pub carve_rounds: u32,
@@ -70,12 +64,15 @@ pub struct TrainedParams {
     pub surface: extract::SurfaceSettings,
     /// Empty the texels outside the training views' visual hull.
     pub hull_carve: bool,
+    /// A texel is outside only where a view shows background on every
+    /// pixel within this many of its projection.
+    pub hull_margin: u32,
     /// Move the quads onto the field's half-transmittance depth
     /// ([`depth::correct`]; one more G-buffer pass).
     pub depth_correct: bool,
     /// Cells per edge of the feature lattice over the object's cube
     /// (independent of g and p: the continuous appearance the texels
-    /// sample; 512 ≈ a pixel of lego at 800 px).
+    /// sample); 0: [`auto_feature_res`].
     pub feature_res: u32,
     /// G-buffer pixels the MLP's initial fit samples.
     pub fit_samples: usize,
@@ -92,12 +89,11 @@ impl TrainedParams {
             grid,
             patch,
             surface_alpha: 0.05,
-            feature_res: 256,
-            haze_alpha: 0.5,
-            haze_span: 3,
+            feature_res: 0,
             carve_rounds: 0,
             depth_correct: false,
             hull_carve: true,
+            hull_margin: 1,
             surface: extract::SurfaceSettings::default(),
             fit_samples: 65_536,
             fit: FitSettings::default(),
@@ -113,21 +109,9 @@ impl TrainedParams {
                 self.surface_alpha
             )));
         }
-        if !(self.haze_alpha >= 0.0 && self.haze_alpha < 1.0) {
+        if self.feature_res != 0 && !(4..=2048).contains(&self.feature_res) {
             return Err(BakeError::BadParam(format!(
-                "--haze-alpha {} must be in [0, 1)",
-                self.haze_alpha
-            )));
-        }
-        if self.haze_span % 2 == 0 || self.haze_span > 15 {
-            return Err(BakeError::BadParam(format!(
-                "haze span {} must be odd and at most 15",
-                self.haze_span
-            )));
-        }
-        if !(16..=2048).contains(&self.feature_res) {
-            return Err(BakeError::BadParam(format!(
-                "--feature-res {} must be in 16..=2048",
+                "--feature-res {} must be 0 (automatic) or in 4..=2048",
                 self.feature_res
             )));
         }
@@ -176,6 +160,8 @@ pub struct TrainedStats {
     pub opaque_texels: u64,
     /// Texels some training pixel shows.
     pub trained_texels: u64,
+    /// Cells per edge of the feature lattice.
+    pub lattice_res: u32,
     /// Vertices of the feature lattice.
     pub lattice_vertices: u64,
     /// Of those, vertices some training pixel's texel reads.
@@ -202,6 +188,30 @@ pub struct TrainedBake {
 
 fn asset_error(e: crate::asset::AssetError) -> BakeError {
     BakeError::BadParam(format!("building the export failed: {e}"))
+}
+
+/// The feature lattice's default resolution: one cell per two pixels of
+/// the object's cube as the training views see it (the median over views
+/// of its edge in pixels at its centre's depth), in 4..=512. On lego at
+/// 800 px that is 256-odd cells; 1024 cells scored 0.3 dB lower, 256 and
+/// 512 within 0.1 dB (docs/baking.md, "Session 5"), and a 96 px capture
+/// gets a lattice its pixels can train.
+pub fn auto_feature_res(cube: &super::Aabb, views: &[BakeView<'_>]) -> u32 {
+    let centre = 0.5 * (cube.min + cube.max);
+    let edge = (cube.max - cube.min).max_element();
+    let mut px: Vec<f32> = views
+        .iter()
+        .filter_map(|v| {
+            let depth = (centre - v.camera.position()).length();
+            (depth > 1e-6).then(|| edge * v.camera.intrinsics.fx / depth)
+        })
+        .collect();
+    if px.is_empty() {
+        return 256;
+    }
+    let mid = px.len() / 2;
+    let (_, m, _) = px.select_nth_unstable_by(mid, f32::total_cmp);
+    ((*m / 2.0).round() as u32).clamp(4, 512)
 }
 
 /// The G-buffers of `geo`'s quads (through an export whose atlas carries
@@ -244,18 +254,13 @@ pub fn bake(
     let (g, p) = (params.grid, params.patch);
     let p2 = (p * p) as usize;
     let t0 = Instant::now();
-    let mask = (params.haze_alpha > 0.0)
-        .then(|| haze::HazeMask::new(field, params.haze_span, params.haze_alpha));
-    let mut surface = extract::Surface::new(field, params.surface_alpha);
-    if let Some(m) = &mask {
-        surface = surface.masked(m);
-    }
+    let surface = extract::Surface::new(field, params.surface_alpha);
     let geo = extract::extract_with(&surface, g, p, &params.surface).ok_or(BakeError::Empty)?;
     // A point on an opaque object projects onto its silhouette in every
     // view: texels that some training view shows as background go.
     let mut geo = geo;
     if params.hull_carve {
-        let sil = super::carve::Silhouettes::new(views);
+        let sil = super::carve::Silhouettes::new(views).with_margin(params.hull_margin);
         let hull = super::carve::texel_occupancy_hull(&sil, &geo.quads, p);
         for (o, h) in geo.opacity.iter_mut().zip(hull) {
             *o &= h;
@@ -336,7 +341,11 @@ pub fn bake(
             .map(|(t, _)| texel_point(t))
             .collect()
     };
-    let mut grid = featgrid::FeatureGrid::new(&geo.cube, params.feature_res, &points);
+    let res = match params.feature_res {
+        0 => auto_feature_res(&geo.cube, views),
+        r => r,
+    };
+    let mut grid = featgrid::FeatureGrid::new(&geo.cube, res, &points);
     drop(points);
 
     // One entry per texel a pixel shows: how it reads the lattice.
@@ -368,7 +377,9 @@ pub fn bake(
             .par_iter()
             .map(|&t| grid.taps(texel_point(t as usize)))
             .collect::<Option<_>>()
-            .ok_or_else(|| BakeError::BadParam("a shown texel lies outside the feature lattice".into()))?
+            .ok_or_else(|| {
+                BakeError::BadParam("a shown texel lies outside the feature lattice".into())
+            })?
     };
     let (values, reached) = init::splat(&grid, &pixels, &taps, field);
     grid.values = values;
@@ -429,6 +440,7 @@ pub fn bake(
         kept_quads: quads.len() as u64,
         opaque_texels: opaque,
         trained_texels: slot_texel.len() as u64,
+        lattice_res: res,
         lattice_vertices: grid.len() as u64,
         reached_vertices: reached as u64,
         train_pixels: pixels.len() as u64,

@@ -40,10 +40,6 @@ pub struct TrainedArgs {
     /// a few cells; 0.05 keeps lego's surface, see docs/baking.md).
     #[arg(long, default_value_t = 0.05)]
     pub surface_alpha: f32,
-    /// Opacity over a box of 3 field cells below which the field counts as
-    /// haze and gets no surface (0: no such mask; see docs/baking.md).
-    #[arg(long, default_value_t = 0.5)]
-    pub haze_alpha: f32,
     /// A voxel side gets a quad when it sees this fraction of the surface
     /// its best side sees (1: one quad per voxel).
     #[arg(long, default_value_t = 0.5)]
@@ -63,8 +59,9 @@ pub struct TrainedArgs {
     #[arg(long, default_value_t = 0)]
     pub carve_rounds: u32,
     /// Cells per edge of the feature lattice the fine-tune learns and the
-    /// texels sample.
-    #[arg(long, default_value_t = 256)]
+    /// texels sample (default 0: one cell per two pixels of the object as
+    /// the training views see it).
+    #[arg(long, default_value_t = 0)]
     pub feature_res: u32,
     /// Before baking, print how well the extracted geometry's texel points
     /// carry the training images (`gbuffer::probe`: the field's colour at
@@ -103,7 +100,6 @@ impl TrainedArgs {
         let mut p = TrainedParams::new(grid, patch);
         p.finetune.epochs = self.epochs;
         p.surface_alpha = self.surface_alpha;
-        p.haze_alpha = self.haze_alpha;
         p.feature_res = self.feature_res;
         p.depth_correct = self.depth_correct;
         p.carve_rounds = self.carve_rounds;
@@ -213,13 +209,15 @@ pub fn bake(
         s.shell_voxels, s.full_voxels, s.extracted_quads, s.carved_quads, s.kept_quads
     );
     println!(
-        "trained: {} opaque texels, {} shown by a training pixel; feature lattice {} vertices, {} reached; {} training pixels; MLP's initial fit: MSE {:.5}",
-        s.opaque_texels, s.trained_texels, s.lattice_vertices, s.reached_vertices, s.train_pixels, s.fit_mse
+        "trained: {} opaque texels, {} shown by a training pixel; feature lattice {}³ cells, {} vertices, {} reached; {} training pixels; MLP's initial fit: MSE {:.5}",
+        s.opaque_texels, s.trained_texels, s.lattice_res, s.lattice_vertices, s.reached_vertices, s.train_pixels, s.fit_mse
     );
-    println!(
-        "trained: {} quads moved onto the field's half-transmittance depth (mean {:.2} voxels; {} pixels with a crossing)",
-        s.depth.moved, s.depth.mean_shift, s.depth.crossings
-    );
+    if args.depth_correct {
+        println!(
+            "trained: {} quads moved onto the field's half-transmittance depth (mean {:.2} voxels; {} pixels with a crossing)",
+            s.depth.moved, s.depth.mean_shift, s.depth.crossings
+        );
+    }
     println!(
         "trained: fine-tune {} steps, {} pixel steps, training PSNR {:.2} → {:.2} dB",
         s.finetune.steps, s.finetune.pixel_steps, s.finetune.psnr_before, s.finetune.psnr_after
@@ -241,13 +239,7 @@ fn probe(
 ) -> anyhow::Result<()> {
     let t0 = std::time::Instant::now();
     let params = args.params(grid, patch);
-    let mask = (params.haze_alpha > 0.0).then(|| {
-        trained::haze::HazeMask::new(field, params.haze_span, params.haze_alpha)
-    });
-    let mut surface = trained::extract::Surface::new(field, params.surface_alpha);
-    if let Some(m) = &mask {
-        surface = surface.masked(m);
-    }
+    let surface = trained::extract::Surface::new(field, params.surface_alpha);
     let geo = trained::extract::extract_with(&surface, grid, patch, &params.surface)
         .context("--probe: the field has no surface at this --surface-alpha")?;
     let pr = trained::gbuffer::probe(&surface, &geo, patch, views)?;

@@ -34,7 +34,14 @@ pub const MIN_PIXELS: usize = 3;
 /// Along the ray `o + t·d`, the `t` in `[t0, t1]` where the transmittance
 /// from `t0` falls to one half (sampled every `step`, linear between
 /// samples), if it does.
-fn half_depth(field: &dyn RadianceField, o: Vec3, d: Vec3, t0: f32, t1: f32, step: f32) -> Option<f32> {
+fn half_depth(
+    field: &dyn RadianceField,
+    o: Vec3,
+    d: Vec3,
+    t0: f32,
+    t1: f32,
+    step: f32,
+) -> Option<f32> {
     // Optical depth of one half: −ln 0.5.
     const HALF: f32 = std::f32::consts::LN_2;
     let mut tau = 0.0f32;
@@ -115,7 +122,9 @@ pub fn correct(
             j += 1;
         }
         if j - i >= MIN_PIXELS {
-            let a = diffs[(i + j) / 2].1.clamp(-MAX_SHIFT * voxel, MAX_SHIFT * voxel);
+            let a = diffs[(i + j) / 2]
+                .1
+                .clamp(-MAX_SHIFT * voxel, MAX_SHIFT * voxel);
             let quad = &mut quads[q as usize];
             // The normal is an axis: the move keeps the quad over its
             // cross-section (and so its texels' opacity pattern).

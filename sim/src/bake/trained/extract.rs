@@ -27,7 +27,6 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::super::carve::{ShellGrid, VoxelClass};
-use super::haze::HazeMask;
 use super::super::quads::{shell_quads, Quad};
 use super::super::Aabb;
 use crate::train::field::RadianceField;
@@ -42,8 +41,6 @@ pub struct Surface<'a> {
     pub field: &'a dyn RadianceField,
     /// Density σ (per world unit) at and above which a point is inside.
     pub sigma: f32,
-    /// Where the field is only haze, nothing is inside ([`HazeMask`]).
-    pub mask: Option<&'a HazeMask>,
 }
 
 impl<'a> Surface<'a> {
@@ -56,22 +53,13 @@ impl<'a> Surface<'a> {
         Self {
             field,
             sigma: -(1.0 - alpha).ln() / step,
-            mask: None,
-        }
-    }
-
-    /// The same test, masked by `mask`.
-    pub fn masked(self, mask: &'a HazeMask) -> Self {
-        Self {
-            mask: Some(mask),
-            ..self
         }
     }
 
     /// Whether world point `p` is inside.
     #[inline]
     pub fn inside(&self, p: Vec3) -> bool {
-        self.field.density(p) >= self.sigma && self.mask.is_none_or(|m| m.solid(p))
+        self.field.density(p) >= self.sigma
     }
 }
 

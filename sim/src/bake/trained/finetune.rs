@@ -54,7 +54,7 @@ impl Default for FinetuneSettings {
         Self {
             epochs: 3.0,
             batch: 8192,
-            lr_features: 0.01,
+            lr_features: 0.03,
             lr_mlp: 3e-3,
             seed: 7,
         }
@@ -105,12 +105,18 @@ pub fn train_psnr(
     10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10()
 }
 
-/// Per-vertex Adam state of the features.
-struct FeatureAdam {
-    m: Vec<[f32; FEATURES]>,
-    v: Vec<[f32; FEATURES]>,
-    t: Vec<u32>,
+/// One vertex's Adam state: moments and β₁ᵗ, β₂ᵗ of its own step count
+/// (rarely reached vertices are not under-corrected).
+#[derive(Clone, Copy)]
+struct VertexAdam {
+    m: [f32; FEATURES],
+    v: [f32; FEATURES],
+    b1t: f32,
+    b2t: f32,
 }
+
+/// Vertices per block of the parallel optimiser step.
+const BLOCK: usize = 4096;
 
 /// Gradient of a batch: MLP and (slot, feature gradient) pairs.
 struct BatchGrad {
@@ -179,15 +185,20 @@ pub fn finetune(
     let mut params = net::flatten(mlp);
     let mut adam = Adam::new(params.len());
     let slots = values.len();
-    let mut st = FeatureAdam {
-        m: vec![[0.0; FEATURES]; slots],
-        v: vec![[0.0; FEATURES]; slots],
-        t: vec![0; slots],
-    };
+    let mut st = vec![
+        VertexAdam {
+            m: [0.0; FEATURES],
+            v: [0.0; FEATURES],
+            b1t: 1.0,
+            b2t: 1.0,
+        };
+        slots
+    ];
     let mut grad = vec![[0f32; FEATURES]; slots];
     // The step (+1) in which each vertex was last touched.
     let mut stamp = vec![0u32; slots];
-    let mut touched: Vec<u32> = Vec::with_capacity(batch);
+    // Touched vertices, by block: each block's Adam steps run on one core.
+    let mut touched: Vec<Vec<u32>> = vec![Vec::new(); slots.div_ceil(BLOCK)];
     let mut idx: Vec<u32> = Vec::with_capacity(batch);
     let mut pixel_steps = 0u64;
     for step in 0..steps {
@@ -208,33 +219,41 @@ pub fn finetune(
         adam.step(&mut params, &net::flatten(&g.mlp), s.lr_mlp * decay);
         *mlp = net::unflatten(&params);
         // Features: sum per vertex, then one Adam step per touched vertex.
-        touched.clear();
         for (slot, df) in &g.feats {
             let t = &taps[*slot as usize];
             for &v in &t.slot {
                 if stamp[v as usize] != step as u32 + 1 {
                     stamp[v as usize] = step as u32 + 1;
-                    touched.push(v);
+                    touched[v as usize / BLOCK].push(v);
                 }
             }
             t.scatter(df, &mut grad);
         }
         let lr = s.lr_features * decay;
-        for &slot in &touched {
-            let k = slot as usize;
-            let gk = std::mem::replace(&mut grad[k], [0.0; FEATURES]);
-            st.t[k] += 1;
-            let t = st.t[k].min(10_000) as i32;
-            let c1 = 1.0 - net::BETA1.powi(t);
-            let c2 = 1.0 - net::BETA2.powi(t);
-            let (m, v, f) = (&mut st.m[k], &mut st.v[k], &mut values[k]);
-            for c in 0..FEATURES {
-                m[c] = net::BETA1 * m[c] + (1.0 - net::BETA1) * gk[c];
-                v[c] = net::BETA2 * v[c] + (1.0 - net::BETA2) * gk[c] * gk[c];
-                f[c] -= lr * (m[c] / c1) / ((v[c] / c2).sqrt() + net::EPS);
-            }
-            net::clamp(f);
-        }
+        values
+            .par_chunks_mut(BLOCK)
+            .zip(st.par_chunks_mut(BLOCK))
+            .zip(grad.par_chunks_mut(BLOCK))
+            .zip(touched.par_iter_mut())
+            .enumerate()
+            .for_each(|(b, (((vals, sts), grads), list))| {
+                for &slot in list.iter() {
+                    let k = slot as usize - b * BLOCK;
+                    let gk = std::mem::replace(&mut grads[k], [0.0; FEATURES]);
+                    let a = &mut sts[k];
+                    a.b1t *= net::BETA1;
+                    a.b2t *= net::BETA2;
+                    let (c1, c2) = (1.0 - a.b1t, 1.0 - a.b2t);
+                    let f = &mut vals[k];
+                    for c in 0..FEATURES {
+                        a.m[c] = net::BETA1 * a.m[c] + (1.0 - net::BETA1) * gk[c];
+                        a.v[c] = net::BETA2 * a.v[c] + (1.0 - net::BETA2) * gk[c] * gk[c];
+                        f[c] -= lr * (a.m[c] / c1) / ((a.v[c] / c2).sqrt() + net::EPS);
+                    }
+                    net::clamp(f);
+                }
+                list.clear();
+            });
     }
     let psnr_after = train_psnr(pixels, taps, values, mlp, stride);
     FinetuneReport {

@@ -52,8 +52,8 @@ pub fn splat(
                 let t = &taps[px.slot as usize];
                 for (&s, &w) in t.slot.iter().zip(&t.w) {
                     let e = &mut a[s as usize];
-                    for k in 0..3 {
-                        e[k] += w * px.target[k];
+                    for (acc, &c) in e.iter_mut().zip(&px.target) {
+                        *acc += w * c;
                     }
                     e[3] += w;
                 }
@@ -70,7 +70,14 @@ pub fn splat(
         })
         .unwrap_or_else(|| vec![[0f32; 4]; n]);
     let reached = acc.iter().filter(|e| e[3] > 0.0).count();
-    let axes = [Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_Z];
+    let axes = [
+        Vec3::X,
+        Vec3::NEG_X,
+        Vec3::Y,
+        Vec3::NEG_Y,
+        Vec3::Z,
+        Vec3::NEG_Z,
+    ];
     let values = acc
         .par_iter()
         .enumerate()
