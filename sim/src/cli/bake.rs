@@ -279,7 +279,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         s.occupied_voxels,
     );
     println!(
-        "texels: {} seen (from {:.2} views each on average), {} unseen (filled), {} empty",
+        "texels: {} seen (from {:.2} views each on average), {} unseen, {} empty",
         s.seen_texels,
         s.view_samples as f64 / s.seen_texels.max(1) as f64,
         s.unseen_texels,

@@ -101,7 +101,7 @@ impl Default for TrainSettings {
                 },
                 Level {
                     res: 256,
-                    iters: 2000,
+                    iters: 3500,
                 },
             ],
             batch: 8192,
