@@ -40,7 +40,6 @@ use std::time::Instant;
 use super::atlas::AtlasLayout;
 use super::{BakeError, BakeParams, BakeStats, BakeView, BakedObject, StageTimes};
 use crate::train::field::RadianceField;
-use nerflex_core::shader::MlpWeights;
 
 pub use finetune::{FinetuneReport, FinetuneSettings};
 pub use init::FitSettings;
@@ -186,10 +185,6 @@ pub struct TrainedBake {
     pub stats: TrainedStats,
 }
 
-fn asset_error(e: crate::asset::AssetError) -> BakeError {
-    BakeError::BadParam(format!("building the export failed: {e}"))
-}
-
 /// The feature lattice's default resolution: one cell per two pixels of
 /// the object's cube as the training views see it (the median over views
 /// of its edge in pixels at its centre's depth), in 4..=512. On lego at
@@ -212,34 +207,6 @@ pub fn auto_feature_res(cube: &super::Aabb, views: &[BakeView<'_>]) -> u32 {
     let mid = px.len() / 2;
     let (_, m, _) = px.select_nth_unstable_by(mid, f32::total_cmp);
     ((*m / 2.0).round() as u32).clamp(4, 512)
-}
-
-/// The G-buffers of `geo`'s quads (through an export whose atlas carries
-/// only the texel opacity) on `views`.
-fn gbuffer_of(
-    geo: &extract::Geometry,
-    g: u32,
-    p: u32,
-    views: &[BakeView<'_>],
-) -> Result<gbuffer::GBuffers, BakeError> {
-    let layout = AtlasLayout::new(geo.quads.len(), p);
-    let mask: Vec<[u8; 8]> = geo
-        .opacity
-        .iter()
-        .map(|&o| [u8::from(o), 0, 0, 0, 0, 0, 0, 0])
-        .collect();
-    let provisional = BakedObject {
-        params: BakeParams::new(g, p),
-        cube: geo.cube,
-        quads: geo.quads.clone(),
-        atlas: export::atlas(&layout, &mask),
-        mlp: MlpWeights::ZERO,
-        stats: BakeStats::default(),
-    }
-    .into_asset()
-    .map_err(asset_error)?;
-    drop(mask);
-    gbuffer::rasterize(&provisional, &layout, views)
 }
 
 /// Bakes the export at (g, p) from `field`, fine-tuned on `views` (the
@@ -275,7 +242,7 @@ pub fn bake(
     let mut dropped_quads = 0u64;
     let mut round = 0;
     let gb = loop {
-        let gb = gbuffer_of(&geo, g, p, views)?;
+        let gb = gbuffer::of_geometry(&geo, p, views)?;
         round += 1;
         if round > params.carve_rounds {
             break gb;
@@ -304,7 +271,7 @@ pub fn bake(
     let (gb, depth_report) = if params.depth_correct {
         let r = depth::correct(field, &mut geo.quads, p, geo.voxel, &gb, views);
         drop(gb);
-        (gbuffer_of(&geo, g, p, views)?, r)
+        (gbuffer::of_geometry(&geo, p, views)?, r)
     } else {
         (gb, depth::DepthReport::default())
     };

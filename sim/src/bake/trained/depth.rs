@@ -82,12 +82,7 @@ pub fn correct(
     let p2 = p * p;
     let b = field.bounds();
     let step = 0.25 * (b.max - b.min).max_element() / field.resolution().max(1) as f32;
-    let origins: Vec<Vec3> = gb
-        .per_view
-        .iter()
-        .zip(views)
-        .flat_map(|(&n, v)| std::iter::repeat_n(v.camera.position(), n))
-        .collect();
+    let origins = gb.origins(views);
     // (quad, the move along its outward normal that puts this pixel's hit
     // on the half-transmittance depth).
     let mut diffs: Vec<(u32, f32)> = gb

@@ -151,6 +151,47 @@ pub fn rasterize(
     Ok(g)
 }
 
+impl GBuffers {
+    /// The camera position of every covered pixel (`views` as given to
+    /// [`rasterize`]).
+    pub fn origins(&self, views: &[BakeView<'_>]) -> Vec<glam::Vec3> {
+        self.per_view
+            .iter()
+            .zip(views)
+            .flat_map(|(&n, v)| std::iter::repeat_n(v.camera.position(), n))
+            .collect()
+    }
+}
+
+/// The G-buffers of `geo`'s quads at patch `p` on `views`, through an
+/// export whose atlas carries only the texel opacity.
+pub fn of_geometry(
+    geo: &super::extract::Geometry,
+    p: u32,
+    views: &[BakeView<'_>],
+) -> Result<GBuffers, BakeError> {
+    use super::super::{BakeParams, BakeStats, BakedObject};
+    let layout = AtlasLayout::new(geo.quads.len(), p);
+    let mask: Vec<[u8; 8]> = geo
+        .opacity
+        .iter()
+        .map(|&o| [u8::from(o), 0, 0, 0, 0, 0, 0, 0])
+        .collect();
+    // The grid size only labels the asset; the quads carry the geometry.
+    let asset = BakedObject {
+        params: BakeParams::new(2, p),
+        cube: geo.cube,
+        quads: geo.quads.clone(),
+        atlas: super::export::atlas(&layout, &mask),
+        mlp: nerflex_core::shader::MlpWeights::ZERO,
+        stats: BakeStats::default(),
+    }
+    .into_asset()
+    .map_err(|e| BakeError::BadParam(format!("building the G-buffers' asset failed: {e}")))?;
+    drop(mask);
+    rasterize(&asset, &layout, views)
+}
+
 /// How well a geometry's texel points carry the training images, before
 /// any fitting: the field's own colour at the point of the texel each
 /// covered training pixel shows, seen along the pixel's direction, against
@@ -185,33 +226,11 @@ pub fn probe(
     p: u32,
     views: &[BakeView<'_>],
 ) -> Result<TexelProbe, BakeError> {
-    use super::super::{BakeParams, BakeStats, BakedObject};
     use glam::Vec3;
-    let layout = AtlasLayout::new(geo.quads.len(), p);
-    let mask: Vec<[u8; 8]> = geo
-        .opacity
-        .iter()
-        .map(|&o| [u8::from(o), 0, 0, 0, 0, 0, 0, 0])
-        .collect();
-    let asset = BakedObject {
-        params: BakeParams::new(2, p),
-        cube: geo.cube,
-        quads: geo.quads.clone(),
-        atlas: super::export::atlas(&layout, &mask),
-        mlp: nerflex_core::shader::MlpWeights::ZERO,
-        stats: BakeStats::default(),
-    }
-    .into_asset()
-    .map_err(|e| BakeError::BadParam(format!("building the probe's asset failed: {e}")))?;
-    let gb = rasterize(&asset, &layout, views)?;
+    let gb = of_geometry(geo, p, views)?;
     let p2 = p * p;
     let field = surf.field;
-    let origins: Vec<Vec3> = gb
-        .per_view
-        .iter()
-        .zip(views)
-        .flat_map(|(&n, v)| std::iter::repeat_n(v.camera.position(), n))
-        .collect();
+    let origins = gb.origins(views);
     let step = geo.voxel / 8.0;
     let on_surface = |o: Vec3, d: Vec3| -> Option<Vec3> {
         // Entry and exit of the ray through the cube.
