@@ -100,12 +100,44 @@ impl TrainedParams {
         }
     }
 
-    fn validate(&self) -> Result<(), BakeError> {
+    /// Checks every setting, naming the flag of a bad one.
+    pub fn validate(&self) -> Result<(), BakeError> {
         BakeParams::new(self.grid, self.patch).validate()?;
         if !(self.surface_alpha > 0.0 && self.surface_alpha < 1.0) {
             return Err(BakeError::BadParam(format!(
                 "surface alpha {} must be in (0, 1)",
                 self.surface_alpha
+            )));
+        }
+        let sf = &self.surface;
+        if !(sf.keep > 0.0 && sf.keep <= 1.0) {
+            return Err(BakeError::BadParam(format!(
+                "--surface-keep {} must be in (0, 1]",
+                sf.keep
+            )));
+        }
+        if !(0.0..=0.5).contains(&sf.grow) {
+            return Err(BakeError::BadParam(format!(
+                "--surface-grow {} must be in [0, 0.5]",
+                sf.grow
+            )));
+        }
+        if !(1..=63).contains(&sf.sub) || sf.refine > 30 {
+            return Err(BakeError::BadParam(format!(
+                "surface sub-lattice {} must be in 1..=63 and refine {} at most 30",
+                sf.sub, sf.refine
+            )));
+        }
+        if self.carve_rounds > 16 {
+            return Err(BakeError::BadParam(format!(
+                "--carve-rounds {} must be at most 16 (each is a G-buffer pass)",
+                self.carve_rounds
+            )));
+        }
+        if self.hull_margin > 16 {
+            return Err(BakeError::BadParam(format!(
+                "hull margin {} px must be at most 16",
+                self.hull_margin
             )));
         }
         if self.feature_res != 0 && !(4..=2048).contains(&self.feature_res) {
@@ -437,4 +469,30 @@ pub fn bake(
         },
     };
     Ok(TrainedBake { baked, stats })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A flag and a way to spoil its setting.
+    type Spoil = (&'static str, fn(&mut TrainedParams));
+
+    #[test]
+    fn bad_settings_name_their_flag() {
+        assert!(TrainedParams::new(32, 5).validate().is_ok());
+        let bad: [Spoil; 5] = [
+            ("--surface-keep", |p| p.surface.keep = f32::NAN),
+            ("--surface-grow", |p| p.surface.grow = 2.0),
+            ("--carve-rounds", |p| p.carve_rounds = 1000),
+            ("--feature-res", |p| p.feature_res = 1),
+            ("--epochs", |p| p.finetune.epochs = f32::INFINITY),
+        ];
+        for (flag, spoil) in bad {
+            let mut p = TrainedParams::new(32, 5);
+            spoil(&mut p);
+            let e = p.validate().expect_err(flag).to_string();
+            assert!(e.contains(flag), "{flag}: {e}");
+        }
+    }
 }

@@ -239,6 +239,7 @@ fn probe(
 ) -> anyhow::Result<()> {
     let t0 = std::time::Instant::now();
     let params = args.params(grid, patch);
+    params.validate()?;
     let surface = trained::extract::Surface::new(field, params.surface_alpha);
     let geo = trained::extract::extract_with(&surface, grid, patch, &params.surface)
         .context("--probe: the field has no surface at this --surface-alpha")?;
