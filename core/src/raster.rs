@@ -540,6 +540,32 @@ pub struct Sample {
     pub quad: u32,
 }
 
+/// Subsamples per pixel side of the supersampled resolve (2 × 2, as
+/// MobileNeRF's viewer rasterizes its G-buffer at twice the output size).
+pub const SUPERSAMPLE: u32 = 2;
+
+/// The texel bytes a supersampled pixel shades for one part: the rounded
+/// mean of its covered subsamples' bytes (`texels`; zeros when empty).
+/// Features are averaged before the MLP, once per pixel and part, as
+/// MobileNeRF's viewer filters its G-buffer; the byte mean keeps the
+/// shader's 8-bit inputs.
+pub fn mean_texel(texels: &[([u8; 4], [u8; 4])]) -> ([u8; 4], [u8; 4]) {
+    let n = texels.len() as u64;
+    if n == 0 {
+        return ([0; 4], [0; 4]);
+    }
+    let mut sum = [0u64; 8];
+    for (a, b) in texels {
+        for k in 0..4 {
+            sum[k] += u64::from(a[k]);
+            sum[4 + k] += u64::from(b[k]);
+        }
+    }
+    // Round half up; the mean of bytes is a byte.
+    let m = |k: usize| ((2 * sum[k] + n) / (2 * n)).min(255) as u8;
+    ([m(0), m(1), m(2), m(3)], [m(4), m(5), m(6), m(7)])
+}
+
 /// Work counters of one tile (or, summed, a frame).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct TileStats {

@@ -23,7 +23,8 @@ use crate::asset::Asset;
 use crate::camera::Camera;
 use image::{Rgba, RgbaImage};
 use nerflex_core::raster::{
-    Part, RasterError, Sample, ScreenQuad, TileRenderer, TileStats, View, BACKGROUND,
+    mean_texel, Part, RasterError, Sample, ScreenQuad, TileRenderer,
+    TileStats, View, BACKGROUND, SUPERSAMPLE,
 };
 use nerflex_core::shader::narrow::batch::{self, BatchInput, LANES};
 use nerflex_core::shader::narrow::{check_samples, NarrowMlp, INPUT_PAIRS};
@@ -42,6 +43,13 @@ pub const TILE: usize = 32;
 pub struct RenderOptions {
     /// Shade with the `f32` MLP instead of the fixed-point one.
     pub float: bool,
+    /// 2 × 2 supersampling, as MobileNeRF's viewer renders: the G-buffer at
+    /// twice the side, each pixel's covered subsamples' texel bytes
+    /// averaged per object ([`nerflex_core::raster::mean_texel`]), the MLP
+    /// once per pixel and object, blended over white by coverage
+    /// (the output's alpha is the covered fraction, its colour straight).
+    /// Binary texel opacity then gives anti-aliased edges.
+    pub supersample: bool,
 }
 
 /// What a frame cost.
@@ -312,6 +320,9 @@ fn render_with(
     opts: &RenderOptions,
     narrow: Option<&[Option<NarrowMlp>]>,
 ) -> Result<(RgbaImage, RenderStats), RasterError> {
+    if opts.supersample {
+        return render_supersampled(assets, camera, opts);
+    }
     let start = Instant::now();
     let view = view_of(camera)?;
     let (parts, weights) = parts(assets);
@@ -369,6 +380,124 @@ fn render_with(
             img.put_pixel(x, y, Rgba(*p));
         }
         stats.pixels_shaded += t.covered;
+        stats.tiles.add(&t.stats);
+        for &q in &t.visible {
+            if let Some(word) = seen.get_mut((q / 32) as usize) {
+                *word |= 1 << (q % 32);
+            }
+        }
+    }
+    stats.quads_visible = seen.iter().map(|w| w.count_ones()).sum();
+    stats.time = start.elapsed();
+    Ok((img, stats))
+}
+
+/// The view at [`SUPERSAMPLE`] times the side: subsample `(sx, sy)` lies
+/// at `((sx + ½)/2, (sy + ½)/2)` in the output's pixel coordinates.
+pub fn supersampled_view(camera: &Camera) -> Result<View, RasterError> {
+    let k = &camera.intrinsics;
+    let f = SUPERSAMPLE as f32;
+    View::new(
+        camera.c2w,
+        k.fx * f,
+        k.fy * f,
+        k.cx * f,
+        k.cy * f,
+        k.width.saturating_mul(SUPERSAMPLE),
+        k.height.saturating_mul(SUPERSAMPLE),
+    )
+}
+
+/// [`render_with`] under [`RenderOptions::supersample`]: tiles of the
+/// doubled view, each resolved to its quarter of output pixels.
+fn render_supersampled(
+    assets: &[&Asset],
+    camera: &Camera,
+    opts: &RenderOptions,
+) -> Result<(RgbaImage, RenderStats), RasterError> {
+    let start = Instant::now();
+    let view = view_of(camera)?;
+    let big = supersampled_view(camera)?;
+    let (parts, weights) = parts(assets);
+    let ss = SUPERSAMPLE;
+    let shade = |tile: &TileRenderer<TILE, TILE>| -> Vec<[u8; 4]> {
+        let (x0, y0, w, h) = tile.rect();
+        let (ow, oh) = (w / ss, h / ss);
+        let mut out = Vec::with_capacity((ow * oh) as usize);
+        // (part, texel bytes) of the covered subsamples of one pixel.
+        let mut subs: Vec<(u16, ([u8; 4], [u8; 4]))> = Vec::with_capacity(4);
+        let mut group: Vec<([u8; 4], [u8; 4])> = Vec::with_capacity(4);
+        for oy in 0..oh {
+            for ox in 0..ow {
+                subs.clear();
+                for dy in 0..ss {
+                    for dx in 0..ss {
+                        let Some(s) = tile.sample(ox * ss + dx, oy * ss + dy) else {
+                            continue;
+                        };
+                        let Some(part) = parts.get(s.part as usize) else {
+                            continue;
+                        };
+                        let t = part
+                            .atlas
+                            .texel(u32::from(s.texel[0]), u32::from(s.texel[1]));
+                        subs.push((s.part, t));
+                    }
+                }
+                if subs.is_empty() {
+                    out.push(px(None));
+                    continue;
+                }
+                let (x, y) = (x0 / ss + ox, y0 / ss + oy);
+                let covered = subs.len() as u32;
+                let mut weighted = [0u32; 3];
+                // One MLP per object the pixel shows (objects differ in MLPs).
+                while let Some(&(part, _)) = subs.first() {
+                    group.clear();
+                    group.extend(subs.iter().filter(|s| s.0 == part).map(|s| s.1));
+                    let (f0, f1) = mean_texel(&group);
+                    let rgb = if opts.float {
+                        weights
+                            .get(part as usize)
+                            .map(|w| shade_f32(w, f0, f1, view.pixel_dir_f32(x, y)))
+                    } else {
+                        parts
+                            .get(part as usize)
+                            .map(|p| p.mlp.shade(f0, f1, view.pixel_dir(x, y)))
+                    }
+                    .unwrap_or(BACKGROUND);
+                    for (acc, c) in weighted.iter_mut().zip(rgb) {
+                        *acc += group.len() as u32 * u32::from(c);
+                    }
+                    subs.retain(|s| s.0 != part);
+                }
+                // Straight (not premultiplied) colour, alpha = coverage:
+                // composited over white it is the coverage-weighted blend.
+                let rgb = weighted.map(|v| ((2 * v + covered) / (2 * covered)).min(255) as u8);
+                let a = ((covered * 255 + ss * ss / 2) / (ss * ss)) as u8;
+                out.push([rgb[0], rgb[1], rgb[2], a]);
+            }
+        }
+        out
+    };
+    let (tiles, total, drawn) = run_tiles(&big, &parts, shade)?;
+    let mut img = RgbaImage::new(view.width(), view.height());
+    let mut stats = RenderStats {
+        quads_total: total,
+        quads_drawn: drawn,
+        ..Default::default()
+    };
+    let mut seen = vec![0u32; (total as usize).div_ceil(32)];
+    for t in &tiles {
+        let (x0, y0, w, _) = t.rect;
+        let (x0, y0, w) = (x0 / ss, y0 / ss, w / ss);
+        for (i, p) in t.pixels.iter().enumerate() {
+            let (x, y) = (x0 + i as u32 % w.max(1), y0 + i as u32 / w.max(1));
+            if x < img.width() && y < img.height() {
+                img.put_pixel(x, y, Rgba(*p));
+            }
+            stats.pixels_shaded += u64::from(p[3] > 0);
+        }
         stats.tiles.add(&t.stats);
         for &q in &t.visible {
             if let Some(word) = seen.get_mut((q / 32) as usize) {

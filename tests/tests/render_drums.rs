@@ -47,7 +47,7 @@ fn drums_at_30_degrees_fixed_and_float_agree_above_45_db() {
     let Some(a) = drums() else { return };
     let cam = orbit(30.0, 30.0, 800);
     let (fixed, s) = render(a, &cam, &RenderOptions::default());
-    let (float, sf) = render(a, &cam, &RenderOptions { float: true });
+    let (float, sf) = render(a, &cam, &RenderOptions { float: true, ..Default::default() });
     let p = psnr(&fixed, &float);
     let differing = fixed
         .pixels()
@@ -94,7 +94,7 @@ fn drums_at_30_degrees_fixed_and_float_agree_above_45_db() {
     let k = Intrinsics::from_fov_x(39.6f32.to_radians(), 800, 800);
     let close = Camera::orbit(90.0, 45.0, 1.8, glam::Vec3::new(0.0, 0.0, -0.5), k);
     let (fixed, s) = render(a, &close, &RenderOptions::default());
-    let (float, _) = render(a, &close, &RenderOptions { float: true });
+    let (float, _) = render(a, &close, &RenderOptions { float: true, ..Default::default() });
     let p = psnr(&fixed, &float);
     let differing = fixed
         .pixels()

@@ -346,3 +346,15 @@ fn g_buffer_is_16_bytes_per_pixel() {
     assert_eq!(core::mem::size_of::<GPixel>(), 16);
     assert!(core::mem::size_of::<TileRenderer<16, 8>>() < 16 * 8 * 16 + 64);
 }
+
+#[test]
+fn the_mean_texel_rounds_and_survives_empty_input() {
+    assert_eq!(mean_texel(&[]), ([0; 4], [0; 4]));
+    let a = ([10, 20, 30, 255], [0, 1, 2, 3]);
+    let b = ([11, 20, 31, 255], [1, 1, 3, 3]);
+    assert_eq!(mean_texel(&[a]), a);
+    // (10 + 11) / 2 = 10.5 rounds up; 255s stay 255.
+    assert_eq!(mean_texel(&[a, b]), ([11, 20, 31, 255], [1, 1, 3, 3]));
+    let full = ([255; 4], [255; 4]);
+    assert_eq!(mean_texel(&[full, full, full, full]), full);
+}

@@ -42,6 +42,10 @@ pub struct Args {
     /// passes its accuracy check; the exact shader otherwise.
     #[arg(long, conflicts_with = "float")]
     pub narrow: bool,
+    /// 2 × 2 supersampling as MobileNeRF's viewer renders (G-buffer at twice
+    /// the side, features averaged, MLP once per pixel, edges blended).
+    #[arg(long, conflicts_with = "narrow")]
+    pub supersample: bool,
     /// Output PNG.
     #[arg(long)]
     pub out: PathBuf,
@@ -115,7 +119,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let load_time = t0.elapsed();
     println!("asset: {}", asset.report());
     println!("loaded in {:.2} s", load_time.as_secs_f64());
-    let opts = RenderOptions { float: args.float };
+    let opts = RenderOptions {
+        float: args.float,
+        supersample: args.supersample,
+    };
     let (img, stats) = if args.narrow {
         let tables = crate::render::narrow_tables(&[&asset])
             .map_err(|e| anyhow::anyhow!("{}: narrow shader: {e}", args.asset.display()))?;
@@ -181,6 +188,7 @@ mod tests {
             size: "8".into(),
             float: false,
             narrow: false,
+            supersample: false,
             out: PathBuf::from("x.png"),
         }
     }
