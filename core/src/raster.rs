@@ -551,19 +551,19 @@ pub const SUPERSAMPLE: u32 = 2;
 /// shader's 8-bit inputs.
 pub fn mean_texel(texels: &[([u8; 4], [u8; 4])]) -> ([u8; 4], [u8; 4]) {
     let n = texels.len() as u64;
-    if n == 0 {
-        return ([0; 4], [0; 4]);
-    }
-    let mut sum = [0u64; 8];
+    let mut s0 = [0u64; 4];
+    let mut s1 = [0u64; 4];
     for (a, b) in texels {
-        for k in 0..4 {
-            sum[k] += u64::from(a[k]);
-            sum[4 + k] += u64::from(b[k]);
+        for (acc, &v) in s0.iter_mut().zip(a) {
+            *acc += u64::from(v);
+        }
+        for (acc, &v) in s1.iter_mut().zip(b) {
+            *acc += u64::from(v);
         }
     }
-    // Round half up; the mean of bytes is a byte.
-    let m = |k: usize| ((2 * sum[k] + n) / (2 * n)).min(255) as u8;
-    ([m(0), m(1), m(2), m(3)], [m(4), m(5), m(6), m(7)])
+    // Round half up; the mean of bytes is a byte (zeros when empty).
+    let mean = |sum: u64| (2 * sum + n).checked_div(2 * n).unwrap_or(0).min(255) as u8;
+    (s0.map(mean), s1.map(mean))
 }
 
 /// Work counters of one tile (or, summed, a frame).

@@ -49,7 +49,16 @@ fn bench(c: &mut Criterion) {
             b.iter(|| black_box(render(&asset, &cam, &RenderOptions::default())))
         });
         g.bench_function(format!("f32/{angle}"), |b| {
-            b.iter(|| black_box(render(&asset, &cam, &RenderOptions { float: true, ..Default::default() })))
+            b.iter(|| {
+                black_box(render(
+                    &asset,
+                    &cam,
+                    &RenderOptions {
+                        float: true,
+                        ..Default::default()
+                    },
+                ))
+            })
         });
         g.bench_function(format!("fixed_one_core/{angle}"), |b| {
             b.iter(|| one.install(|| black_box(render(&asset, &cam, &RenderOptions::default()))))

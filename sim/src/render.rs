@@ -15,16 +15,29 @@
 //! shader's per-pixel path. Objects whose weights fail the narrow shader's
 //! accuracy check ([`narrow_tables`]) keep the exact shader.
 //!
-//! Output: `rgb` composited over white (MobileNeRF's viewer convention;
-//! coverage is binary, so a pixel is either the MLP's colour or white) and
-//! `alpha` = coverage (255 or 0).
+//! By default ([`RenderOptions::supersample`]) a frame is rasterized at
+//! twice the side and resolved 2 × 2, as MobileNeRF's viewer renders (its
+//! G-buffer at twice the canvas, linearly filtered before the MLP pass):
+//! per pixel and object, the covered subsamples' texel bytes are averaged
+//! and shaded once. Binary texel opacity then gives anti-aliased edges; on
+//! lego's held-out views it is worth about 1 dB (`docs/baking.md`,
+//! "Session 6"). The device model is unchanged by it: it counts set-up
+//! quads and shaded pixels (one MLP per pixel either way), and its
+//! throughput factor is calibrated against the paper's FPS, which were
+//! measured on MobileNeRF's viewer, supersampling included.
+//!
+//! Output: `alpha` = the covered fraction of the pixel (255 or 0 with one
+//! sample per pixel) and `rgb` the objects' colour, straight (not
+//! premultiplied): composited over white, as the metrics do, a partly
+//! covered pixel blends with the white background (MobileNeRF's viewer
+//! convention).
 
 use crate::asset::Asset;
 use crate::camera::Camera;
 use image::{Rgba, RgbaImage};
 use nerflex_core::raster::{
-    mean_texel, Part, RasterError, Sample, ScreenQuad, TileRenderer,
-    TileStats, View, BACKGROUND, SUPERSAMPLE,
+    mean_texel, Part, RasterError, Sample, ScreenQuad, TileRenderer, TileStats, View, BACKGROUND,
+    SUPERSAMPLE,
 };
 use nerflex_core::shader::narrow::batch::{self, BatchInput, LANES};
 use nerflex_core::shader::narrow::{check_samples, NarrowMlp, INPUT_PAIRS};
@@ -38,8 +51,8 @@ use std::time::{Duration, Instant};
 /// Tile side in pixels.
 pub const TILE: usize = 32;
 
-/// How to render.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+/// How to render (default: fixed-point shader, 2 × 2 supersampling).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RenderOptions {
     /// Shade with the `f32` MLP instead of the fixed-point one.
     pub float: bool,
@@ -50,6 +63,15 @@ pub struct RenderOptions {
     /// (the output's alpha is the covered fraction, its colour straight).
     /// Binary texel opacity then gives anti-aliased edges.
     pub supersample: bool,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        Self {
+            float: false,
+            supersample: true,
+        }
+    }
 }
 
 /// What a frame cost.
@@ -320,7 +342,9 @@ fn render_with(
     opts: &RenderOptions,
     narrow: Option<&[Option<NarrowMlp>]>,
 ) -> Result<(RgbaImage, RenderStats), RasterError> {
-    if opts.supersample {
+    // The narrow shader's batches have no supersampled path: it renders
+    // one sample per pixel.
+    if opts.supersample && narrow.is_none() {
         return render_supersampled(assets, camera, opts);
     }
     let start = Instant::now();
@@ -408,6 +432,9 @@ pub fn supersampled_view(camera: &Camera) -> Result<View, RasterError> {
     )
 }
 
+/// A texel's two RGBA8 feature bytes.
+type Texel = ([u8; 4], [u8; 4]);
+
 /// [`render_with`] under [`RenderOptions::supersample`]: tiles of the
 /// doubled view, each resolved to its quarter of output pixels.
 fn render_supersampled(
@@ -425,8 +452,8 @@ fn render_supersampled(
         let (ow, oh) = (w / ss, h / ss);
         let mut out = Vec::with_capacity((ow * oh) as usize);
         // (part, texel bytes) of the covered subsamples of one pixel.
-        let mut subs: Vec<(u16, ([u8; 4], [u8; 4]))> = Vec::with_capacity(4);
-        let mut group: Vec<([u8; 4], [u8; 4])> = Vec::with_capacity(4);
+        let mut subs: Vec<(u16, Texel)> = Vec::with_capacity(4);
+        let mut group: Vec<Texel> = Vec::with_capacity(4);
         for oy in 0..oh {
             for ox in 0..ow {
                 subs.clear();

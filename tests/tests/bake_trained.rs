@@ -142,8 +142,15 @@ fn the_export_round_trips_and_the_renderer_reproduces_the_finetune_shader() {
         assert_eq!(a.atlas.feat0().as_raw(), b.atlas.feat0().as_raw());
         assert_eq!(a.atlas.feat1().as_raw(), b.atlas.feat1().as_raw());
     }
-    let fixed = DrawOptions { float: false };
-    let float = DrawOptions { float: true };
+    // One sample per pixel, as the baker trains by default.
+    let fixed = DrawOptions {
+        float: false,
+        supersample: false,
+    };
+    let float = DrawOptions {
+        float: true,
+        supersample: false,
+    };
     // The fine-tune's f32 shader is `render --float`: over the training
     // pixels it trained on (covered, object coverage ≥ 50 %), the float
     // renders give exactly its final training PSNR; the fixed-point

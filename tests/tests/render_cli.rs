@@ -17,6 +17,7 @@ fn args(asset: PathBuf, out: PathBuf, float: bool) -> Args {
         size: "800".into(),
         float,
         narrow: false,
+        no_supersample: false,
         out,
     }
 }
@@ -44,11 +45,39 @@ fn render_command_writes_fixed_and_float_pngs_that_agree() {
         tmp.path().join("drums_float.png"),
         tmp.path().join("drums_narrow.png"),
     );
-    run(args(asset.clone(), fixed.clone(), false)).unwrap();
-    run(args(asset.clone(), float.clone(), true)).unwrap();
+    // One sample per pixel: the narrow shader has no supersampled path.
+    let one = |out: &PathBuf, float: bool| Args {
+        no_supersample: true,
+        ..args(asset.clone(), out.clone(), float)
+    };
+    run(one(&fixed, false)).unwrap();
+    run(one(&float, true)).unwrap();
     let mut n = args(asset.clone(), narrow.clone(), false);
     n.narrow = true;
     run(n).unwrap();
+    // The default 2 × 2 supersampled renders: fixed within one level of
+    // float (each object's colour is, and so is their coverage-weighted
+    // mean), and the same coverage as one sample per pixel where all four
+    // subsamples agree.
+    let (ss_fixed, ss_float) = (tmp.path().join("ss.png"), tmp.path().join("ss_float.png"));
+    run(args(asset.clone(), ss_fixed.clone(), false)).unwrap();
+    run(args(asset.clone(), ss_float.clone(), true)).unwrap();
+    let (sa, sb) = (
+        image::open(&ss_fixed).unwrap().to_rgba8(),
+        image::open(&ss_float).unwrap().to_rgba8(),
+    );
+    for (p, q) in sa.pixels().zip(sb.pixels()) {
+        assert_eq!(p.0[3], q.0[3], "supersampled coverage differs");
+        for k in 0..3 {
+            let d = (i32::from(p.0[k]) - i32::from(q.0[k])).abs();
+            assert!(d <= 1, "supersampled fixed vs float: {d} levels");
+        }
+    }
+    let partial = sa.pixels().filter(|p| p.0[3] > 0 && p.0[3] < 255).count();
+    assert!(
+        partial > 100,
+        "edges are blended: {partial} partly covered pixels"
+    );
     // The narrow shader is within one level of the exact one everywhere.
     let c = image::open(&narrow).unwrap().to_rgba8();
     let exact = image::open(&fixed).unwrap().to_rgba8();

@@ -321,10 +321,7 @@ pub type RenderFn<'a> = dyn Fn(&Asset, &Camera) -> anyhow::Result<RgbaImage> + S
 
 /// The renderer of `nerflex render` (fixed-point shader), as a [`RenderFn`].
 pub fn fixed_point_render(asset: &Asset, camera: &Camera) -> anyhow::Result<RgbaImage> {
-    let opts = crate::render::RenderOptions {
-        supersample: std::env::var_os("NERFLEX_SSAA").is_some(),
-        ..Default::default()
-    };
+    let opts = crate::render::RenderOptions::default();
     crate::render::try_render_scene(&[asset], camera, &opts)
         .map(|(img, _)| img)
         .map_err(|e| anyhow::anyhow!("the renderer rejected the camera: {e}"))

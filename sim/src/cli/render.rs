@@ -42,10 +42,11 @@ pub struct Args {
     /// passes its accuracy check; the exact shader otherwise.
     #[arg(long, conflicts_with = "float")]
     pub narrow: bool,
-    /// 2 × 2 supersampling as MobileNeRF's viewer renders (G-buffer at twice
-    /// the side, features averaged, MLP once per pixel, edges blended).
-    #[arg(long, conflicts_with = "narrow")]
-    pub supersample: bool,
+    /// One sample per pixel instead of the default 2 × 2 supersampling
+    /// (MobileNeRF's viewer: G-buffer at twice the side, features averaged,
+    /// MLP once per pixel, edges blended); `--narrow` always renders one.
+    #[arg(long)]
+    pub no_supersample: bool,
     /// Output PNG.
     #[arg(long)]
     pub out: PathBuf,
@@ -121,7 +122,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     println!("loaded in {:.2} s", load_time.as_secs_f64());
     let opts = RenderOptions {
         float: args.float,
-        supersample: args.supersample,
+        supersample: !args.no_supersample && !args.narrow,
     };
     let (img, stats) = if args.narrow {
         let tables = crate::render::narrow_tables(&[&asset])
@@ -188,7 +189,7 @@ mod tests {
             size: "8".into(),
             float: false,
             narrow: false,
-            supersample: false,
+            no_supersample: false,
             out: PathBuf::from("x.png"),
         }
     }

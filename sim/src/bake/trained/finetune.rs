@@ -1,13 +1,15 @@
 //! Fine-tuning texel features and the MLP against the training images
 //! through the renderer's deferred shading, as MobileNeRF's last stage does.
 //!
-//! Every training pixel the geometry covers shows one texel (the G-buffer,
-//! [`super::gbuffer`]); the texel's features are the feature lattice read
-//! at its point ([`super::featgrid`]), its colour the MLP of those
-//! features, quantised to 8 bits as the atlas stores them
-//! (straight-through: the gradient passes the rounding unchanged), and the
-//! pixel's direction. The loss is the mean squared error against the image
-//! composited over white. Adam updates the MLP every batch and each
+//! Every training pixel the geometry covers shows one texel per covered
+//! subsample (the G-buffer, [`super::gbuffer`]; 2 × 2 subsamples under
+//! supersampling); a texel's features are the feature lattice read at its
+//! point ([`super::featgrid`]), quantised to 8 bits as the atlas stores
+//! them; the pixel's colour is the MLP of the subsamples' mean features
+//! (rounded to 8 bits as the renderer's resolve does; straight-through:
+//! the gradient passes the roundings unchanged) and the pixel's direction,
+//! blended over white by coverage. The loss is the mean squared error
+//! against the image composited over white. Adam updates the MLP every batch and each
 //! lattice vertex whenever the batch reaches it (per-vertex step counts for
 //! the bias correction, so rarely reached vertices are not
 //! under-corrected). Batches are split over the cores with rayon.
@@ -22,16 +24,68 @@ use super::featgrid::Taps;
 use super::net::{self, Adam, FEATURES};
 use nerflex_core::shader::MlpWeights;
 
-/// A training pixel: the texel it shows, its direction and its target
-/// colour.
+/// A training pixel: the texels its covered subsamples show, its
+/// direction and its target colour.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrainPixel {
-    /// Index into the shown texels' [`Taps`].
-    pub slot: u32,
+    /// Indices into the shown texels' [`Taps`], `covered` of them first.
+    pub slots: [u32; 4],
+    /// Covered subsamples (≥ 1).
+    pub covered: u8,
+    /// Subsamples per pixel (1, or 4 under 2 × 2 supersampling).
+    pub samples: u8,
     /// View direction the renderer feeds the MLP here.
     pub dir: [f32; 3],
     /// Target colour in [0, 1].
     pub target: [f32; 3],
+}
+
+impl TrainPixel {
+    /// The slots of its covered subsamples.
+    #[inline]
+    pub fn shown(&self) -> &[u32] {
+        &self.slots[..usize::from(self.covered).clamp(1, 4)]
+    }
+
+    /// The fraction of the pixel its subsamples cover.
+    #[inline]
+    pub fn coverage(&self) -> f32 {
+        f32::from(self.covered) / f32::from(self.samples.max(1))
+    }
+
+    /// Whether every subsample is covered.
+    #[inline]
+    pub fn full(&self) -> bool {
+        self.covered >= self.samples
+    }
+
+    /// The quantised features the renderer's MLP reads here: the mean of
+    /// the covered subsamples' 8-bit texels, itself rounded to 8 bits
+    /// (`nerflex_core::raster::mean_texel`).
+    #[inline]
+    pub fn features(&self, taps: &[Taps], values: &[[f32; FEATURES]]) -> [f32; FEATURES] {
+        let shown = self.shown();
+        if let [one] = shown {
+            return net::quantise(&taps[*one as usize].gather(values));
+        }
+        let mut f = [0f32; FEATURES];
+        for &s in shown {
+            let q = net::quantise(&taps[s as usize].gather(values));
+            for (a, b) in f.iter_mut().zip(q) {
+                *a += b;
+            }
+        }
+        let inv = 1.0 / shown.len() as f32;
+        net::quantise(&f.map(|v| v * inv))
+    }
+
+    /// The pixel's colour for MLP output `y` (blended over white by
+    /// coverage).
+    #[inline]
+    pub fn blend(&self, y: [f32; 3]) -> [f32; 3] {
+        let c = self.coverage();
+        y.map(|v| v * c + (1.0 - c))
+    }
 }
 
 /// Settings of the fine-tune.
@@ -89,11 +143,11 @@ pub fn train_psnr(
         .par_iter()
         .step_by(stride.max(1))
         .map(|px| {
-            let f = taps[px.slot as usize].gather(values);
-            let x = net::input(&net::quantise(&f), px.dir);
-            let y = net::to_u8(net::forward(mlp, &x).y);
+            let x = net::input(&px.features(taps, values), px.dir);
+            let y = net::to_u8(net::forward(mlp, &x).y).map(|v| f32::from(v) / 255.0);
+            let c = px.blend(y);
             let se: f64 = (0..3)
-                .map(|k| (f64::from(y[k]) - f64::from(px.target[k]) * 255.0).powi(2))
+                .map(|k| (f64::from(c[k] - px.target[k]) * 255.0).powi(2))
                 .sum();
             (se, 3u64)
         })
@@ -141,12 +195,19 @@ fn batch_grad(
             };
             for &i in chunk {
                 let px = &pixels[i as usize];
-                let f = taps[px.slot as usize].gather(values);
-                let x = net::input(&net::quantise(&f), px.dir);
+                let x = net::input(&px.features(taps, values), px.dir);
                 let a = net::forward(mlp, &x);
-                let dy = std::array::from_fn(|k| scale * (a.y[k] - px.target[k]));
+                let c = px.blend(a.y);
+                let cov = px.coverage();
+                let dy = std::array::from_fn(|k| scale * cov * (c[k] - px.target[k]));
                 let df = net::backward(mlp, &a, dy, &mut g.mlp);
-                g.feats.push((px.slot, df));
+                // The mean's gradient, shared by its subsamples
+                // (straight-through both roundings).
+                let shown = px.shown();
+                let inv = 1.0 / shown.len() as f32;
+                for &s in shown {
+                    g.feats.push((s, df.map(|v| v * inv)));
+                }
             }
             g
         })

@@ -9,22 +9,42 @@ use rayon::prelude::*;
 use super::super::atlas::AtlasLayout;
 use super::super::{BakeError, BakeView};
 use crate::asset::Asset;
-use crate::render::view_of;
-use nerflex_core::raster::{Part, ScreenQuad, TileRenderer};
+use crate::render::{supersampled_view, view_of};
+use nerflex_core::raster::{Part, ScreenQuad, TileRenderer, SUPERSAMPLE};
 
 /// Tile side of the G-buffer pass (as the host renderer's).
 const TILE: usize = 32;
 
+/// Subsamples of a pixel ([`nerflex_core::raster::SUPERSAMPLE`]²).
+pub const SUBSAMPLES: usize = 4;
+
 /// One covered pixel of a training view.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GPixel {
-    /// The texel it shows: `quad · p² + y · p + x` (re-indexed to a
-    /// trained-feature slot by the caller).
-    pub texel: u32,
+    /// The texels its covered subsamples show, `covered` of them first:
+    /// `quad · p² + y · p + x` (re-indexed to trained-feature slots by the
+    /// caller). Without supersampling, one.
+    pub texels: [u32; SUBSAMPLES],
+    /// Covered subsamples (1 ..= [`SUBSAMPLES`]; 1 without supersampling).
+    pub covered: u8,
     /// The `f32` view direction the renderer feeds the MLP at this pixel.
     pub dir: [f32; 3],
     /// The training image here composited over white, in [0, 1].
     pub target: [f32; 3],
+}
+
+impl GPixel {
+    /// The texel of its first covered subsample.
+    #[inline]
+    pub fn texel(&self) -> u32 {
+        self.texels[0]
+    }
+
+    /// The texels of its covered subsamples.
+    #[inline]
+    pub fn shown(&self) -> &[u32] {
+        &self.texels[..usize::from(self.covered).min(SUBSAMPLES)]
+    }
 }
 
 /// The G-buffers of every training view.
@@ -40,11 +60,14 @@ pub struct GBuffers {
 }
 
 /// Rasterizes every view of `asset` (quads in atlas order, `layout` the
-/// atlas they were laid out with; only feat0.R = 0 matters: empty texels).
+/// atlas they were laid out with; only feat0.R = 0 matters: empty texels),
+/// with 2 × 2 subsamples per pixel when `supersample` (as
+/// `render::RenderOptions::supersample` renders).
 pub fn rasterize(
     asset: &Asset,
     layout: &AtlasLayout,
     views: &[BakeView<'_>],
+    supersample: bool,
 ) -> Result<GBuffers, BakeError> {
     let parts: Vec<Part<'_>> = asset
         .shapes
@@ -61,8 +84,14 @@ pub fn rasterize(
         .par_iter()
         .enumerate()
         .map(|(vi, v)| {
-            let view =
-                view_of(&v.camera).map_err(|e| BakeError::BadViews(format!("view {vi}: {e:?}")))?;
+            let bad = |e| BakeError::BadViews(format!("view {vi}: {e:?}"));
+            let out_view = view_of(&v.camera).map_err(bad)?;
+            let view = if supersample {
+                supersampled_view(&v.camera).map_err(bad)?
+            } else {
+                out_view
+            };
+            let ss = if supersample { SUPERSAMPLE } else { 1 };
             let mut id = 0u32;
             let mut projected = Vec::new();
             for (pi, part) in parts.iter().enumerate() {
@@ -99,44 +128,58 @@ pub fn rasterize(
                         tile.draw(sq, &part.atlas);
                     }
                 }
-                tile.for_each_sample(|x, y, s| {
-                    let Some(s) = s else { return };
-                    let Some(cell) = layout.cell(s.quad as usize) else {
-                        return;
-                    };
-                    let (lx, ly) = (
-                        u32::from(s.texel[0]).wrapping_sub(cell.x),
-                        u32::from(s.texel[1]).wrapping_sub(cell.y),
-                    );
-                    if lx >= p || ly >= p {
-                        return;
-                    }
-                    // Pixels another object covers say nothing about this one.
-                    if let super::super::Silhouette::Instance { mask, label } = v.silhouette {
-                        let m = mask.get_pixel(x, y).0[0];
-                        if m != 0 && m != label {
-                            return;
+                let (x0, y0, w, h) = tile.rect();
+                let mut texels = [0u32; SUBSAMPLES];
+                for oy in 0..h / ss {
+                    for ox in 0..w / ss {
+                        let mut n = 0usize;
+                        for i in 0..ss * ss {
+                            let Some(s) = tile.sample(ox * ss + i % ss, oy * ss + i / ss) else {
+                                continue;
+                            };
+                            let Some(cell) = layout.cell(s.quad as usize) else {
+                                continue;
+                            };
+                            let (lx, ly) = (
+                                u32::from(s.texel[0]).wrapping_sub(cell.x),
+                                u32::from(s.texel[1]).wrapping_sub(cell.y),
+                            );
+                            if lx < p && ly < p && n < SUBSAMPLES {
+                                texels[n] = s.quad * p * p + ly * p + lx;
+                                n += 1;
+                            }
                         }
+                        if n == 0 {
+                            continue;
+                        }
+                        let (x, y) = (x0 / ss + ox, y0 / ss + oy);
+                        // Pixels another object covers say nothing about this one.
+                        if let super::super::Silhouette::Instance { mask, label } = v.silhouette {
+                            let m = mask.get_pixel(x, y).0[0];
+                            if m != 0 && m != label {
+                                continue;
+                            }
+                        }
+                        // Where the image shows (mostly) background a white
+                        // target would only teach a surface texel to be white
+                        // (geometry is fixed here): such pixels give no target,
+                        // only votes against the geometry they show.
+                        let cov = v.coverage(x, y);
+                        if cov < 128 {
+                            background.extend_from_slice(&texels[..n]);
+                            continue;
+                        }
+                        let px = v.image.get_pixel(x, y).0;
+                        let a = f32::from(cov) / 255.0;
+                        let c = |k: usize| f32::from(px[k]) / 255.0 * a + (1.0 - a);
+                        out.push(GPixel {
+                            texels,
+                            covered: n as u8,
+                            dir: out_view.pixel_dir_f32(x, y),
+                            target: [c(0), c(1), c(2)],
+                        });
                     }
-                    // Where the image shows (mostly) background a white
-                    // target would only teach a surface texel to be white
-                    // (geometry is fixed here): such pixels give no target,
-                    // only a vote against the geometry they show.
-                    let cov = v.coverage(x, y);
-                    let texel = s.quad * p * p + ly * p + lx;
-                    if cov < 128 {
-                        background.push(texel);
-                        return;
-                    }
-                    let px = v.image.get_pixel(x, y).0;
-                    let a = f32::from(cov) / 255.0;
-                    let c = |k: usize| f32::from(px[k]) / 255.0 * a + (1.0 - a);
-                    out.push(GPixel {
-                        texel,
-                        dir: view.pixel_dir_f32(x, y),
-                        target: [c(0), c(1), c(2)],
-                    });
-                });
+                }
             }
             Ok((out, background))
         })
@@ -169,6 +212,7 @@ pub fn of_geometry(
     geo: &super::extract::Geometry,
     p: u32,
     views: &[BakeView<'_>],
+    supersample: bool,
 ) -> Result<GBuffers, BakeError> {
     use super::super::{BakeParams, BakeStats, BakedObject};
     let layout = AtlasLayout::new(geo.quads.len(), p);
@@ -189,7 +233,7 @@ pub fn of_geometry(
     .into_asset()
     .map_err(|e| BakeError::BadParam(format!("building the G-buffers' asset failed: {e}")))?;
     drop(mask);
-    rasterize(&asset, &layout, views)
+    rasterize(&asset, &layout, views, supersample)
 }
 
 /// How well a geometry's texel points carry the training images, before
@@ -227,7 +271,7 @@ pub fn probe(
     views: &[BakeView<'_>],
 ) -> Result<TexelProbe, BakeError> {
     use glam::Vec3;
-    let gb = of_geometry(geo, p, views)?;
+    let gb = of_geometry(geo, p, views, false)?;
     let p2 = p * p;
     let field = surf.field;
     let origins = gb.origins(views);
@@ -271,8 +315,8 @@ pub fn probe(
         .par_iter()
         .zip(origins.par_iter())
         .map(|(px, &o)| {
-            let q = &geo.quads[(px.texel / p2) as usize];
-            let t = px.texel % p2;
+            let q = &geo.quads[(px.texel() / p2) as usize];
+            let t = px.texel() % p2;
             let x = super::extract::texel_point(q, p, t % p, t / p);
             let e = err(x, px);
             match on_surface(o, Vec3::from_array(px.dir)) {

@@ -49,13 +49,20 @@ pub fn splat(
         .map(|chunk| {
             let mut a = vec![[0f32; 4]; n];
             for px in chunk {
-                let t = &taps[px.slot as usize];
-                for (&s, &w) in t.slot.iter().zip(&t.w) {
-                    let e = &mut a[s as usize];
-                    for (acc, &c) in e.iter_mut().zip(&px.target) {
-                        *acc += w * c;
+                // Edge pixels mix in the background: leave them out.
+                if !px.full() {
+                    continue;
+                }
+                let share = 1.0 / px.shown().len() as f32;
+                for &slot in px.shown() {
+                    let t = &taps[slot as usize];
+                    for (&s, &w) in t.slot.iter().zip(&t.w) {
+                        let e = &mut a[s as usize];
+                        for (acc, &c) in e.iter_mut().zip(&px.target) {
+                            *acc += share * w * c;
+                        }
+                        e[3] += share * w;
                     }
-                    e[3] += w;
                 }
             }
             a
