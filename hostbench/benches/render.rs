@@ -1,6 +1,8 @@
 //! Full 800×800 frames of the real drums shape at a few turntable angles:
-//! fixed-point (exact, per pixel), narrow (batched: AVX2 when present) and
-//! `f32` shading, and the coverage-only pass the device simulator uses. Tiles run in parallel on all cores (rayon); a
+//! one sample per pixel with fixed-point (exact, per pixel), narrow
+//! (batched: AVX2 when present) and `f32` shading; the default 2 × 2
+//! supersampled render (`supersampled/…`); and the coverage-only pass the
+//! device simulator uses. Tiles run in parallel on all cores (rayon); a
 //! single-thread pool gives the one-core figure.
 //!
 //! Needs `../shared/data` (skips otherwise).
@@ -32,20 +34,28 @@ fn bench(c: &mut Criterion) {
         .build()
         .expect("pool");
     let narrow = narrow_tables(&[&asset]).expect("narrow tables");
+    // One sample per pixel (the figures recorded before supersampling
+    // became the default).
+    let one_sample = RenderOptions {
+        float: false,
+        supersample: false,
+    };
     let narrow_render = |cam: &Camera| {
-        try_render_scene_narrow(&[&asset], cam, &RenderOptions::default(), &narrow)
-            .expect("renders")
+        try_render_scene_narrow(&[&asset], cam, &one_sample, &narrow).expect("renders")
     };
     let mut g = c.benchmark_group("render_drums_800");
     g.sample_size(20);
     for angle in ANGLES {
         let cam = camera(angle);
-        let (_, s) = render(&asset, &cam, &RenderOptions::default());
+        let (_, s) = render(&asset, &cam, &one_sample);
         println!(
             "angle {angle}°: quads drawn {} of {}, visible {}, pixels shaded {}, fragments {}, discarded {}",
             s.quads_drawn, s.quads_total, s.quads_visible, s.pixels_shaded, s.tiles.fragments, s.tiles.discarded
         );
         g.bench_function(format!("fixed/{angle}"), |b| {
+            b.iter(|| black_box(render(&asset, &cam, &one_sample)))
+        });
+        g.bench_function(format!("supersampled/{angle}"), |b| {
             b.iter(|| black_box(render(&asset, &cam, &RenderOptions::default())))
         });
         g.bench_function(format!("f32/{angle}"), |b| {
@@ -55,13 +65,13 @@ fn bench(c: &mut Criterion) {
                     &cam,
                     &RenderOptions {
                         float: true,
-                        ..Default::default()
+                        ..one_sample
                     },
                 ))
             })
         });
         g.bench_function(format!("fixed_one_core/{angle}"), |b| {
-            b.iter(|| one.install(|| black_box(render(&asset, &cam, &RenderOptions::default()))))
+            b.iter(|| one.install(|| black_box(render(&asset, &cam, &one_sample))))
         });
         g.bench_function(format!("narrow_one_core/{angle}"), |b| {
             b.iter(|| one.install(|| black_box(narrow_render(&cam))))

@@ -293,3 +293,59 @@ fn probe_geometries() {
         }
     }
 }
+
+#[test]
+fn a_supersampled_finetune_is_what_the_supersampled_renderer_shows() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = capture(tmp.path(), ObjectKind::Ball, 64, 16);
+    let cap = Capture::load(&dir).unwrap();
+    let obj = ObjectViews::from_capture(&cap, None).unwrap();
+    let views = obj.bake_views();
+    let mut tp = TrainedParams::new(16, 5);
+    tp.supersample = true;
+    tp.finetune.epochs = 10.0;
+    tp.finetune.batch = 1024;
+    let tb = trained::bake(&field_of(&cap), &views, &tp).unwrap();
+    let report = tb.stats.finetune;
+    let asset = tb.baked.into_asset().unwrap();
+    let float = DrawOptions {
+        float: true,
+        supersample: true,
+    };
+    // Over the pixels the fine-tune trained on (any subsample covered,
+    // object coverage ≥ 50 %), the supersampled float renders composited
+    // over white give the fine-tune's final training PSNR: the same mean
+    // texel bytes, the same MLP, the same coverage blend (the renderer's
+    // alpha is the coverage rounded to 8 bits, 64/255 for ¼: hence a
+    // tolerance, not equality; 23.985 vs 23.982 dB when written).
+    let (mut se, mut n, mut partial) = (0f64, 0u64, 0u64);
+    for v in &views {
+        let (rf, _) = render(&asset, &v.camera, &float);
+        for (x, y, px) in rf.enumerate_pixels() {
+            let cov = v.coverage(x, y);
+            if px.0[3] == 0 || cov < 128 {
+                continue;
+            }
+            partial += u64::from(px.0[3] < 255);
+            let a = f64::from(px.0[3]) / 255.0;
+            let src = v.image.get_pixel(x, y).0;
+            let t_a = f64::from(cov) / 255.0;
+            for (&s, &r) in src.iter().zip(&px.0).take(3) {
+                let shown = f64::from(r) * a + 255.0 * (1.0 - a);
+                let t = f64::from(s) * t_a + 255.0 * (1.0 - t_a);
+                let t = (t / 255.0) as f32 as f64 * 255.0;
+                se += (shown - t).powi(2);
+                n += 1;
+            }
+        }
+    }
+    let psnr = 10.0 * (255.0f64 * 255.0 / (se / n as f64)).log10();
+    eprintln!("supersampled float renders over the training pixels: {psnr:.4} dB ({partial} partly covered); fine-tune: {report:?}");
+    assert!(partial > 0, "some training pixels are partly covered");
+    assert!(
+        (psnr - report.psnr_after).abs() < 0.02,
+        "{psnr} vs {}",
+        report.psnr_after
+    );
+    assert!(report.psnr_after > report.psnr_before + 1.0, "{report:?}");
+}
