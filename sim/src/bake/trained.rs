@@ -73,8 +73,8 @@ pub struct TrainedParams {
     /// (`render::RenderOptions::supersample`, the default render): each
     /// training pixel shows up to four texels whose mean features the MLP
     /// reads, and partly covered pixels blend with white. Off by default:
-    /// on lego (128, 17) it bought +0.09 dB over training at one sample per
-    /// pixel (both rendered supersampled) for 1.7× the bake time
+    /// on lego (128, 17) it bought +0.14 dB over training at one sample per
+    /// pixel (both rendered supersampled) for 1.6× the bake time
     /// (`docs/baking.md`, "Session 6").
     pub supersample: bool,
     /// Cells per edge of the feature lattice over the object's cube

@@ -55,7 +55,7 @@ pub struct TrainedArgs {
     #[arg(long)]
     pub depth_correct: bool,
     /// Fine-tune through the renderer's 2 × 2 supersampling (up to four
-    /// texels per training pixel; +0.09 dB on lego for 1.7× the bake time,
+    /// texels per training pixel; +0.14 dB on lego for 1.6× the bake time,
     /// docs/baking.md) instead of one sample per pixel.
     #[arg(long)]
     pub train_supersample: bool,
