@@ -390,6 +390,18 @@ fn render_with(
         out
     };
     let (tiles, total, drawn) = run_tiles(&view, &parts, shade)?;
+    Ok(assemble(&view, &tiles, (total, drawn), 1, start))
+}
+
+/// The image and counters of a frame's shaded tiles; `ss` subsamples per
+/// pixel side (tile rectangles are in subsample coordinates).
+fn assemble(
+    view: &View,
+    tiles: &[TileOut],
+    (total, drawn): (u32, u32),
+    ss: u32,
+    start: Instant,
+) -> (RgbaImage, RenderStats) {
     let mut img = RgbaImage::new(view.width(), view.height());
     let mut stats = RenderStats {
         quads_total: total,
@@ -397,13 +409,21 @@ fn render_with(
         ..Default::default()
     };
     let mut seen = vec![0u32; (total as usize).div_ceil(32)];
-    for t in &tiles {
+    for t in tiles {
         let (x0, y0, w, _) = t.rect;
+        let (x0, y0, w) = (x0 / ss, y0 / ss, (w / ss).max(1));
         for (i, p) in t.pixels.iter().enumerate() {
             let (x, y) = (x0 + i as u32 % w, y0 + i as u32 / w);
-            img.put_pixel(x, y, Rgba(*p));
+            if x < img.width() && y < img.height() {
+                img.put_pixel(x, y, Rgba(*p));
+            }
         }
-        stats.pixels_shaded += t.covered;
+        // Shaded pixels: covered ones (one sample), or any subsample covered.
+        stats.pixels_shaded += if ss == 1 {
+            t.covered
+        } else {
+            t.pixels.iter().filter(|p| p[3] > 0).count() as u64
+        };
         stats.tiles.add(&t.stats);
         for &q in &t.visible {
             if let Some(word) = seen.get_mut((q / 32) as usize) {
@@ -413,7 +433,7 @@ fn render_with(
     }
     stats.quads_visible = seen.iter().map(|w| w.count_ones()).sum();
     stats.time = start.elapsed();
-    Ok((img, stats))
+    (img, stats)
 }
 
 /// The view at [`SUPERSAMPLE`] times the side: subsample `(sx, sy)` lies
@@ -508,33 +528,7 @@ fn render_supersampled(
         out
     };
     let (tiles, total, drawn) = run_tiles(&big, &parts, shade)?;
-    let mut img = RgbaImage::new(view.width(), view.height());
-    let mut stats = RenderStats {
-        quads_total: total,
-        quads_drawn: drawn,
-        ..Default::default()
-    };
-    let mut seen = vec![0u32; (total as usize).div_ceil(32)];
-    for t in &tiles {
-        let (x0, y0, w, _) = t.rect;
-        let (x0, y0, w) = (x0 / ss, y0 / ss, w / ss);
-        for (i, p) in t.pixels.iter().enumerate() {
-            let (x, y) = (x0 + i as u32 % w.max(1), y0 + i as u32 / w.max(1));
-            if x < img.width() && y < img.height() {
-                img.put_pixel(x, y, Rgba(*p));
-            }
-            stats.pixels_shaded += u64::from(p[3] > 0);
-        }
-        stats.tiles.add(&t.stats);
-        for &q in &t.visible {
-            if let Some(word) = seen.get_mut((q / 32) as usize) {
-                *word |= 1 << (q % 32);
-            }
-        }
-    }
-    stats.quads_visible = seen.iter().map(|w| w.count_ones()).sum();
-    stats.time = start.elapsed();
-    Ok((img, stats))
+    Ok(assemble(&view, &tiles, (total, drawn), ss, start))
 }
 
 /// Renders one asset (see [`try_render_scene`]). A camera the rasterizer

@@ -47,6 +47,22 @@ fn field_of(cap: &Capture) -> Builtin {
     Builtin::from_info(&scene.objects[0]).expect("a built-in kind")
 }
 
+/// A 64-pixel ball with 16 training views and its analytic field.
+fn ball(dir: &Path) -> (ObjectViews, Builtin) {
+    let cap = Capture::load(capture(dir, ObjectKind::Ball, 64, 16)).unwrap();
+    let obj = ObjectViews::from_capture(&cap, None).unwrap();
+    (obj, field_of(&cap))
+}
+
+/// The ball's bake at (16, 5): 10 epochs of 1024-pixel batches.
+fn ball_params(supersample: bool) -> TrainedParams {
+    let mut tp = TrainedParams::new(16, 5);
+    tp.supersample = supersample;
+    tp.finetune.epochs = 10.0;
+    tp.finetune.batch = 1024;
+    tp
+}
+
 /// Intersection over union of drawn pixels (alpha > 0) and the truth's
 /// object pixels (alpha ≥ 128), summed over the views.
 fn coverage_iou(renders: &[RgbaImage], truth: &[(nerflex_sim::camera::Camera, RgbaImage)]) -> f64 {
@@ -122,14 +138,9 @@ fn on_a_lattice_the_trained_baker_beats_the_hull_baker() {
 #[test]
 fn the_export_round_trips_and_the_renderer_reproduces_the_finetune_shader() {
     let tmp = tempfile::tempdir().unwrap();
-    let dir = capture(tmp.path(), ObjectKind::Ball, 64, 16);
-    let cap = Capture::load(&dir).unwrap();
-    let obj = ObjectViews::from_capture(&cap, None).unwrap();
+    let (obj, field) = ball(tmp.path());
     let views = obj.bake_views();
-    let mut tp = TrainedParams::new(16, 5);
-    tp.finetune.epochs = 10.0;
-    tp.finetune.batch = 1024;
-    let tb = trained::bake(&field_of(&cap), &views, &tp).unwrap();
+    let tb = trained::bake(&field, &views, &ball_params(false)).unwrap();
     let report = tb.stats.finetune;
     let asset = tb.baked.into_asset().unwrap();
     // Write (parallel encoder) → load: the same asset.
@@ -299,15 +310,9 @@ fn probe_geometries() {
 #[test]
 fn a_supersampled_finetune_is_what_the_supersampled_renderer_shows() {
     let tmp = tempfile::tempdir().unwrap();
-    let dir = capture(tmp.path(), ObjectKind::Ball, 64, 16);
-    let cap = Capture::load(&dir).unwrap();
-    let obj = ObjectViews::from_capture(&cap, None).unwrap();
+    let (obj, field) = ball(tmp.path());
     let views = obj.bake_views();
-    let mut tp = TrainedParams::new(16, 5);
-    tp.supersample = true;
-    tp.finetune.epochs = 10.0;
-    tp.finetune.batch = 1024;
-    let tb = trained::bake(&field_of(&cap), &views, &tp).unwrap();
+    let tb = trained::bake(&field, &views, &ball_params(true)).unwrap();
     let report = tb.stats.finetune;
     let asset = tb.baked.into_asset().unwrap();
     let float = DrawOptions {
