@@ -238,6 +238,10 @@ impl Lpips {
                             .map(|((x, y), l)| l * (x - y) * (x - y))
                             .sum::<f32>() as f64
                     })
+                    .collect::<Vec<f64>>()
+                    // In pixel order: the same features give the same bits
+                    // whatever the work stealing.
+                    .iter()
                     .sum();
                 sum / (fa.h * fa.w) as f64
             })

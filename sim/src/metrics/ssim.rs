@@ -119,6 +119,10 @@ fn channel_ssim(a: &[f64], b: &[f64], c: usize, w: usize, h: usize, kernel: &[f6
             }
             row_sum
         })
+        .collect::<Vec<f64>>()
+        // Summed in row order: a parallel float sum's grouping depends on
+        // work stealing, and the same images must give the same SSIM bits.
+        .iter()
         .sum();
     total / (vw * vh) as f64
 }
