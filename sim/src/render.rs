@@ -61,7 +61,9 @@ pub struct RenderOptions {
     /// averaged per object ([`nerflex_core::raster::mean_texel`]), the MLP
     /// once per pixel and object, blended over white by coverage
     /// (the output's alpha is the covered fraction, its colour straight).
-    /// Binary texel opacity then gives anti-aliased edges.
+    /// Binary texel opacity then gives anti-aliased edges. The rasterizer's
+    /// side limit then applies to the doubled view: a camera over 8192
+    /// pixels a side is rejected (`RasterError::BadView`).
     pub supersample: bool,
 }
 

@@ -114,6 +114,14 @@ pub fn camera(args: &Args, w: u32, h: u32) -> anyhow::Result<Camera> {
 /// Runs `nerflex render`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let (w, h) = parse_size(&args.size)?;
+    let supersample = !args.no_supersample && !args.narrow;
+    let limit = 16384 / nerflex_core::raster::SUPERSAMPLE;
+    if supersample && w.max(h) > limit {
+        bail!(
+            "--size {}: a supersampled render rasterizes at twice the side, so at most {limit} pixels a side; add --no-supersample for up to 16384",
+            args.size
+        );
+    }
     let cam = camera(&args, w, h)?;
     let t0 = std::time::Instant::now();
     let asset = Asset::load(&args.asset)?;
@@ -122,7 +130,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     println!("loaded in {:.2} s", load_time.as_secs_f64());
     let opts = RenderOptions {
         float: args.float,
-        supersample: !args.no_supersample && !args.narrow,
+        supersample,
     };
     let (img, stats) = if args.narrow {
         let tables = crate::render::narrow_tables(&[&asset])
@@ -192,6 +200,17 @@ mod tests {
             no_supersample: false,
             out: PathBuf::from("x.png"),
         }
+    }
+
+    #[test]
+    fn a_supersampled_render_too_large_names_the_flags() {
+        let mut a = args();
+        a.size = "9000".into();
+        let e = run(a).unwrap_err().to_string();
+        assert!(
+            e.contains("--size") && e.contains("--no-supersample"),
+            "{e}"
+        );
     }
 
     #[test]
