@@ -290,8 +290,8 @@ pub fn bake(
         }
         let nq = geo.quads.len();
         let mut votes = vec![0i32; nq];
-        for px in &gb.pixels {
-            for &t in px.shown() {
+        for i in 0..gb.pixels.len() {
+            for &t in gb.shown(i) {
                 votes[t as usize / p2] += 1;
             }
         }
@@ -322,8 +322,8 @@ pub fn bake(
     // Keep the quads some training pixel shows.
     let nq = geo.quads.len();
     let mut hits = vec![0u32; nq];
-    for px in &gb.pixels {
-        for &t in px.shown() {
+    for i in 0..gb.pixels.len() {
+        for &t in gb.shown(i) {
             hits[t as usize / p2] += 1;
         }
     }
@@ -363,33 +363,28 @@ pub fn bake(
     // One entry per texel a pixel shows: how it reads the lattice.
     let mut slot_of = vec![u32::MAX; opacity.len()];
     let mut slot_texel: Vec<u32> = Vec::new();
-    let pixels: Vec<finetune::TrainPixel> = gb
-        .pixels
-        .iter()
-        .map(|px| {
-            let mut slots = [0u32; gbuffer::SUBSAMPLES];
-            for (k, &texel) in px.shown().iter().enumerate() {
-                let q = new_index[texel as usize / p2] as usize;
-                let t = q * p2 + texel as usize % p2;
-                if slot_of[t] == u32::MAX {
-                    slot_of[t] = slot_texel.len() as u32;
-                    slot_texel.push(t as u32);
-                }
-                slots[k] = slot_of[t];
-            }
-            finetune::TrainPixel {
-                slots,
-                covered: px.covered,
-                samples: if params.supersample {
-                    gbuffer::SUBSAMPLES as u8
-                } else {
-                    1
-                },
-                dir: px.dir,
-                target: px.target,
-            }
-        })
-        .collect();
+    let mut slot = |texel: u32| -> u32 {
+        let q = new_index[texel as usize / p2] as usize;
+        let t = q * p2 + texel as usize % p2;
+        if slot_of[t] == u32::MAX {
+            slot_of[t] = slot_texel.len() as u32;
+            slot_texel.push(t as u32);
+        }
+        slot_of[t]
+    };
+    let mut pixels = finetune::TrainPixels::default();
+    for (i, px) in gb.pixels.iter().enumerate() {
+        pixels.pixels.push(finetune::TrainPixel {
+            slot: slot(px.texel),
+            dir: px.dir,
+            target: px.target,
+        });
+        if let Some(s) = gb.subsamples.get(i) {
+            pixels
+                .subsamples
+                .push(s.map(|t| if t == gbuffer::NO_TEXEL { t } else { slot(t) }));
+        }
+    }
     drop(gb);
     drop(slot_of);
     drop(new_index);
@@ -408,9 +403,10 @@ pub fn bake(
     let stride = (pixels.len() / params.fit_samples.max(1)).max(1);
     let samples: Vec<init::FitSample> = {
         use rayon::prelude::*;
-        pixels
-            .par_iter()
+        (0..pixels.len())
+            .into_par_iter()
             .step_by(stride)
+            .map(|i| pixels.get(i))
             .filter(|px| px.full())
             .map(|px| init::FitSample {
                 feat: px.features(&taps, &grid.values),

@@ -90,8 +90,8 @@ pub fn correct(
         .par_iter()
         .zip(origins.par_iter())
         .filter_map(|(px, &o)| {
-            let q = &quads[(px.texel() / p2) as usize];
-            let t = px.texel() % p2;
+            let q = &quads[(px.texel / p2) as usize];
+            let t = px.texel % p2;
             let x = texel_point(q, p, t % p, t / p);
             let d = Vec3::from_array(px.dir);
             let tx = (x - o).dot(d);
@@ -102,7 +102,7 @@ pub fn correct(
             if dn > -0.2 {
                 return None;
             }
-            Some((px.texel() / p2, (h - tx) * dn))
+            Some((px.texel / p2, (h - tx) * dn))
         })
         .collect();
     let crossings = diffs.len() as u64;

@@ -21,42 +21,91 @@ use rayon::prelude::*;
 use std::time::Instant;
 
 use super::featgrid::Taps;
+use super::gbuffer::{covered, Subsamples};
 use super::net::{self, Adam, FEATURES};
 use nerflex_core::shader::MlpWeights;
 
-/// A training pixel: the texels its covered subsamples show, its
-/// direction and its target colour.
+/// A training pixel: the texel it shows (its first subsample's under
+/// supersampling), its direction and its target colour.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrainPixel {
-    /// Indices into the shown texels' [`Taps`], `covered` of them first.
-    pub slots: [u32; 4],
-    /// Covered subsamples (≥ 1).
-    pub covered: u8,
-    /// Subsamples per pixel (1, or 4 under 2 × 2 supersampling).
-    pub samples: u8,
+    /// Index into the shown texels' [`Taps`].
+    pub slot: u32,
     /// View direction the renderer feeds the MLP here.
     pub dir: [f32; 3],
     /// Target colour in [0, 1].
     pub target: [f32; 3],
 }
 
-impl TrainPixel {
-    /// The slots of its covered subsamples.
+/// The training pixels, and under supersampling each one's covered
+/// subsamples' slots (`gbuffer::NO_TEXEL` where uncovered; empty with one
+/// sample per pixel, which so pays nothing for them).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TrainPixels {
+    /// The pixels.
+    pub pixels: Vec<TrainPixel>,
+    /// Parallel to `pixels` when supersampled, else empty.
+    pub subsamples: Vec<Subsamples>,
+}
+
+impl TrainPixels {
+    /// Number of pixels.
+    pub fn len(&self) -> usize {
+        self.pixels.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.pixels.is_empty()
+    }
+
+    /// Pixel `i` (`i < len()`).
+    #[inline]
+    pub fn get(&self, i: usize) -> PixelRef<'_> {
+        PixelRef {
+            px: &self.pixels[i],
+            subs: self.subsamples.get(i),
+        }
+    }
+}
+
+/// One training pixel with its subsamples, if supersampled.
+#[derive(Debug, Clone, Copy)]
+pub struct PixelRef<'a> {
+    px: &'a TrainPixel,
+    subs: Option<&'a Subsamples>,
+}
+
+impl std::ops::Deref for PixelRef<'_> {
+    type Target = TrainPixel;
+    fn deref(&self) -> &TrainPixel {
+        self.px
+    }
+}
+
+impl PixelRef<'_> {
+    /// The slots of its covered subsamples (its one slot unsupersampled).
     #[inline]
     pub fn shown(&self) -> &[u32] {
-        &self.slots[..usize::from(self.covered).clamp(1, 4)]
+        match self.subs {
+            Some(s) => covered(s),
+            None => std::slice::from_ref(&self.px.slot),
+        }
     }
 
     /// The fraction of the pixel its subsamples cover.
     #[inline]
     pub fn coverage(&self) -> f32 {
-        f32::from(self.covered) / f32::from(self.samples.max(1))
+        match self.subs {
+            Some(s) => covered(s).len() as f32 / s.len() as f32,
+            None => 1.0,
+        }
     }
 
     /// Whether every subsample is covered.
     #[inline]
     pub fn full(&self) -> bool {
-        self.covered >= self.samples
+        self.subs.is_none_or(|s| covered(s).len() == s.len())
     }
 
     /// The quantised features the renderer's MLP reads here: the mean of
@@ -75,7 +124,7 @@ impl TrainPixel {
                 *a += b;
             }
         }
-        let inv = 1.0 / shown.len() as f32;
+        let inv = 1.0 / shown.len().max(1) as f32;
         net::quantise(&f.map(|v| v * inv))
     }
 
@@ -133,16 +182,17 @@ pub struct FinetuneReport {
 /// PSNR (dB) of the 8-bit output of the `f32` shader over the training
 /// pixels (every `stride`-th), as the renderer would show them.
 pub fn train_psnr(
-    pixels: &[TrainPixel],
+    pixels: &TrainPixels,
     taps: &[Taps],
     values: &[[f32; FEATURES]],
     mlp: &MlpWeights,
     stride: usize,
 ) -> f64 {
-    let (se, n) = pixels
-        .par_iter()
+    let (se, n) = (0..pixels.len())
+        .into_par_iter()
         .step_by(stride.max(1))
-        .map(|px| {
+        .map(|i| {
+            let px = pixels.get(i);
             let x = net::input(&px.features(taps, values), px.dir);
             let y = net::to_u8(net::forward(mlp, &x).y).map(|v| f32::from(v) / 255.0);
             let c = px.blend(y);
@@ -180,7 +230,7 @@ struct BatchGrad {
 
 fn batch_grad(
     batch: &[u32],
-    pixels: &[TrainPixel],
+    pixels: &TrainPixels,
     taps: &[Taps],
     values: &[[f32; FEATURES]],
     mlp: &MlpWeights,
@@ -194,7 +244,7 @@ fn batch_grad(
                 feats: Vec::with_capacity(chunk.len()),
             };
             for &i in chunk {
-                let px = &pixels[i as usize];
+                let px = pixels.get(i as usize);
                 let x = net::input(&px.features(taps, values), px.dir);
                 let a = net::forward(mlp, &x);
                 let c = px.blend(a.y);
@@ -227,7 +277,7 @@ fn batch_grad(
 /// Fine-tunes the lattice's `values` (which the shown texels read through
 /// `taps`) and `mlp` on `pixels`.
 pub fn finetune(
-    pixels: &[TrainPixel],
+    pixels: &TrainPixels,
     taps: &[Taps],
     values: &mut [[f32; FEATURES]],
     mlp: &mut MlpWeights,

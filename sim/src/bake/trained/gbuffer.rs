@@ -21,30 +21,28 @@ pub const SUBSAMPLES: usize = 4;
 /// One covered pixel of a training view.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GPixel {
-    /// The texels its covered subsamples show, `covered` of them first:
-    /// `quad · p² + y · p + x` (re-indexed to trained-feature slots by the
-    /// caller). Without supersampling, one.
-    pub texels: [u32; SUBSAMPLES],
-    /// Covered subsamples (1 ..= [`SUBSAMPLES`]; 1 without supersampling).
-    pub covered: u8,
+    /// The texel it shows (its first covered subsample's, under
+    /// supersampling): `quad · p² + y · p + x` (re-indexed to a
+    /// trained-feature slot by the caller).
+    pub texel: u32,
     /// The `f32` view direction the renderer feeds the MLP at this pixel.
     pub dir: [f32; 3],
     /// The training image here composited over white, in [0, 1].
     pub target: [f32; 3],
 }
 
-impl GPixel {
-    /// The texel of its first covered subsample.
-    #[inline]
-    pub fn texel(&self) -> u32 {
-        self.texels[0]
-    }
+/// Texels of a supersampled pixel's covered subsamples, first; the rest
+/// [`NO_TEXEL`].
+pub type Subsamples = [u32; SUBSAMPLES];
 
-    /// The texels of its covered subsamples.
-    #[inline]
-    pub fn shown(&self) -> &[u32] {
-        &self.texels[..usize::from(self.covered).min(SUBSAMPLES)]
-    }
+/// An uncovered subsample.
+pub const NO_TEXEL: u32 = u32::MAX;
+
+/// The covered entries of `s`.
+#[inline]
+pub fn covered(s: &Subsamples) -> &[u32] {
+    let n = s.iter().take_while(|&&t| t != NO_TEXEL).count();
+    &s[..n]
 }
 
 /// The G-buffers of every training view.
@@ -52,6 +50,10 @@ impl GPixel {
 pub struct GBuffers {
     /// Covered pixels of all views, view after view.
     pub pixels: Vec<GPixel>,
+    /// Under supersampling, each pixel's covered subsamples' texels
+    /// (parallel to `pixels`); empty with one sample per pixel, which so
+    /// carries no per-subsample storage.
+    pub subsamples: Vec<Subsamples>,
     /// Covered pixels per view.
     pub per_view: Vec<usize>,
     /// The texel each covered pixel of the background (object coverage
@@ -79,7 +81,7 @@ pub fn rasterize(
         })
         .collect();
     let p = layout.patch;
-    type ViewPixels = (Vec<GPixel>, Vec<u32>);
+    type ViewPixels = (Vec<GPixel>, Vec<Subsamples>, Vec<u32>);
     let per: Vec<Result<ViewPixels, BakeError>> = views
         .par_iter()
         .enumerate()
@@ -116,6 +118,7 @@ pub fn rasterize(
             let mut tile = Box::new(TileRenderer::<TILE, TILE>::new());
             let mut out = Vec::new();
             let mut background = Vec::new();
+            let mut subs = Vec::new();
             for (b, bin) in bins.iter().enumerate() {
                 if bin.is_empty() {
                     continue;
@@ -129,9 +132,9 @@ pub fn rasterize(
                     }
                 }
                 let (x0, y0, w, h) = tile.rect();
-                let mut texels = [0u32; SUBSAMPLES];
                 for oy in 0..h / ss {
                     for ox in 0..w / ss {
+                        let mut texels = [NO_TEXEL; SUBSAMPLES];
                         let mut n = 0usize;
                         for i in 0..ss * ss {
                             let Some(s) = tile.sample(ox * ss + i % ss, oy * ss + i / ss) else {
@@ -173,28 +176,40 @@ pub fn rasterize(
                         let a = f32::from(cov) / 255.0;
                         let c = |k: usize| f32::from(px[k]) / 255.0 * a + (1.0 - a);
                         out.push(GPixel {
-                            texels,
-                            covered: n as u8,
+                            texel: texels[0],
                             dir: out_view.pixel_dir_f32(x, y),
                             target: [c(0), c(1), c(2)],
                         });
+                        if supersample {
+                            subs.push(texels);
+                        }
                     }
                 }
             }
-            Ok((out, background))
+            Ok((out, subs, background))
         })
         .collect();
     let mut g = GBuffers::default();
     for r in per {
-        let (px, bg) = r?;
+        let (px, subs, bg) = r?;
         g.per_view.push(px.len());
         g.pixels.extend(px);
+        g.subsamples.extend(subs);
         g.background.extend(bg);
     }
     Ok(g)
 }
 
 impl GBuffers {
+    /// The texels pixel `i` shows: its covered subsamples', or its one.
+    #[inline]
+    pub fn shown(&self, i: usize) -> &[u32] {
+        match self.subsamples.get(i) {
+            Some(s) => covered(s),
+            None => std::slice::from_ref(&self.pixels[i].texel),
+        }
+    }
+
     /// The camera position of every covered pixel (`views` as given to
     /// [`rasterize`]).
     pub fn origins(&self, views: &[BakeView<'_>]) -> Vec<glam::Vec3> {
@@ -315,8 +330,8 @@ pub fn probe(
         .par_iter()
         .zip(origins.par_iter())
         .map(|(px, &o)| {
-            let q = &geo.quads[(px.texel() / p2) as usize];
-            let t = px.texel() % p2;
+            let q = &geo.quads[(px.texel / p2) as usize];
+            let t = px.texel % p2;
             let x = super::extract::texel_point(q, p, t % p, t / p);
             let e = err(x, px);
             match on_surface(o, Vec3::from_array(px.dir)) {

@@ -21,7 +21,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 use super::featgrid::{FeatureGrid, Taps};
-use super::finetune::TrainPixel;
+use super::finetune::TrainPixels;
 use super::net::{self, Adam, FEATURES};
 use crate::train::field::RadianceField;
 use nerflex_core::shader::MlpWeights;
@@ -38,17 +38,19 @@ pub fn features_of(c: Vec3) -> [f32; FEATURES] {
 /// many vertices the pixels reached.
 pub fn splat(
     grid: &FeatureGrid,
-    pixels: &[TrainPixel],
+    pixels: &TrainPixels,
     taps: &[Taps],
     field: &dyn RadianceField,
 ) -> (Vec<[f32; FEATURES]>, usize) {
     let n = grid.len();
     let threads = rayon::current_num_threads().max(1);
-    let acc = pixels
-        .par_chunks(pixels.len().div_ceil(threads).max(1))
-        .map(|chunk| {
+    let chunk = pixels.len().div_ceil(threads).max(1);
+    let acc = (0..pixels.len().div_ceil(chunk))
+        .into_par_iter()
+        .map(|c| {
             let mut a = vec![[0f32; 4]; n];
-            for px in chunk {
+            for i in c * chunk..((c + 1) * chunk).min(pixels.len()) {
+                let px = pixels.get(i);
                 // Edge pixels mix in the background: leave them out.
                 if !px.full() {
                     continue;
