@@ -101,14 +101,15 @@ impl Options {
     /// planning over g ∈ {16, 24, 32, 48, 64, 96, 128, 144} ×
     /// p ∈ {3, 5, 7, 9, 11, 13, 15, 17} (64 configurations per object).
     pub fn reduced(store: PathBuf) -> Options {
+        let configs = crate::eval::scale::Scale::Reduced.configs();
         Options {
             size: 160,
             train_views: 16,
             test_views: 4,
-            sample_grid: (16, 144),
-            sample_patch: (3, 17),
-            space_grid: vec![16, 24, 32, 48, 64, 96, 128, 144],
-            space_patch: vec![3, 5, 7, 9, 11, 13, 15, 17],
+            sample_grid: configs.sample_grid,
+            sample_patch: configs.sample_patch,
+            space_grid: configs.space_grid,
+            space_patch: configs.space_patch,
             turntable: TurntableSpec::DEFAULT,
             sim: SimOptions::default(),
             store,
