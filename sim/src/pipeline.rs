@@ -18,7 +18,7 @@ pub mod one;
 pub mod stages;
 pub mod views;
 
-pub use bakes::{BakeStore, Baked, Baker, TrainedBaker};
+pub use bakes::{BakeRequest, BakeStore, Baked, Baker, TrainedBaker};
 pub use fields::{FieldStore, StoredField};
 pub use one::{method_plan, run_one, RunResult, RunTimes};
 pub use stages::{

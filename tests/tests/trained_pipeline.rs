@@ -275,3 +275,46 @@ fn a_trained_evaluation_names_its_baker_and_what_it_substitutes() {
     assert!(md.contains("the trained baker"), "no substitution line");
     assert!(!md.contains("visual-hull bakes (no trained field)"));
 }
+
+#[test]
+fn hull_bakes_two_at_a_time_are_the_bakes_one_at_a_time_in_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let cap = Capture::load(capture(dir.path(), &[ObjectKind::Ball], 32, 6)).unwrap();
+    let views = ObjectViews::from_capture(&cap, None).unwrap();
+    let configs = [(8, 3), (16, 5), (12, 4), (16, 5)];
+    let reqs: Vec<pipeline::BakeRequest<'_>> = configs
+        .iter()
+        .map(|&(g, p)| pipeline::BakeRequest {
+            views: &views,
+            g,
+            p,
+        })
+        .collect();
+    let label = |i: usize| format!("bake {i}");
+    let two = BakeStore::new(dir.path().join("two")).with_jobs(2);
+    let one = BakeStore::new(dir.path().join("one")).with_jobs(1);
+    assert_eq!((two.jobs(), one.jobs()), (2, 1));
+    let a = two.get_or_bake_many(&reqs, None, &Quiet, &label).unwrap();
+    let b = one.get_or_bake_many(&reqs, None, &Quiet, &label).unwrap();
+    assert_eq!(a.len(), configs.len());
+    for ((x, y), &(g, p)) in a.iter().zip(&b).zip(&configs) {
+        // Each result answers its own request, and the same bits either way.
+        assert_eq!((x.sample.g, x.sample.p), (g, p));
+        assert_eq!(x.sample.size_bytes, y.sample.size_bytes);
+        assert_eq!(x.sample.ssim.to_bits(), y.sample.ssim.to_bits());
+    }
+    // The repeated request is one store entry.
+    assert_eq!(a[1].dir, a[3].dir);
+    // The trained baker bakes one at a time whatever the store says.
+    assert_eq!(
+        BakeStore::with_baker(dir.path().join("t"), tiny_baker())
+            .with_jobs(4)
+            .jobs(),
+        1
+    );
+    // A bad request fails the batch with its own error, after the others.
+    let mut bad = reqs.clone();
+    bad[2].g = 0;
+    let err = two.get_or_bake_many(&bad, None, &Quiet, &label).unwrap_err();
+    assert!(format!("{err:#}").contains("g=0"), "{err:#}");
+}

@@ -32,6 +32,9 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+/// Hull bakes at once by default (this machine has two cores).
+pub const DEFAULT_HULL_JOBS: usize = 2;
+
 /// The visual-hull baker's name in reports ([`crate::bake::bake`]).
 pub const HULL_BAKER: &str = "hull";
 
@@ -106,6 +109,19 @@ pub struct BakeStore {
     fields: FieldStore,
     /// The last field used, so the sample bakes of one network load it once.
     last_field: Arc<Mutex<Option<StoredField>>>,
+    /// Hull bakes [`BakeStore::get_or_bake_many`] runs at once.
+    jobs: usize,
+}
+
+/// One bake of [`BakeStore::get_or_bake_many`].
+#[derive(Clone, Copy)]
+pub struct BakeRequest<'a> {
+    /// The views to bake from.
+    pub views: &'a ObjectViews,
+    /// Grid g.
+    pub g: u32,
+    /// Patch p.
+    pub p: u32,
 }
 
 impl std::fmt::Debug for BakeStore {
@@ -134,7 +150,80 @@ impl BakeStore {
             root,
             baker,
             last_field: Arc::new(Mutex::new(None)),
+            jobs: DEFAULT_HULL_JOBS,
         }
+    }
+
+    /// The same store running `jobs` hull bakes at once in
+    /// [`BakeStore::get_or_bake_many`] (at least 1).
+    pub fn with_jobs(mut self, jobs: usize) -> Self {
+        self.jobs = jobs.max(1);
+        self
+    }
+
+    /// Bakes running at once in [`BakeStore::get_or_bake_many`]: the
+    /// store's `jobs` for the hull baker; one for the trained baker, whose
+    /// bakes share a field that one of them may be training and each hold
+    /// G-buffers of every training view (about 2 GB at 800 × 800).
+    pub fn jobs(&self) -> usize {
+        match self.baker {
+            Baker::Hull => self.jobs,
+            Baker::Trained(_) => 1,
+        }
+    }
+
+    /// Every request's bake, in the order given, [`BakeStore::jobs`] at a
+    /// time, largest (g²·p²) first so the last ones to finish are short;
+    /// `progress` steps once per bake with `label(i)`. The first error in
+    /// request order is returned, after every started bake has finished.
+    ///
+    /// Why: a hull bake keeps about 1.5 of two cores busy (its encoding and
+    /// measuring are partly serial); two at once took `nerflex eval --quick`
+    /// from 914 s to the figure in `docs/evaluation.md`.
+    pub fn get_or_bake_many(
+        &self,
+        reqs: &[BakeRequest<'_>],
+        lpips: Option<&Lpips>,
+        progress: &dyn Progress,
+        label: &(dyn Fn(usize) -> String + Sync),
+    ) -> anyhow::Result<Vec<Baked>> {
+        let mut order: Vec<usize> = (0..reqs.len()).collect();
+        order.sort_by_key(|&i| {
+            let r = &reqs[i];
+            std::cmp::Reverse(u64::from(r.g).pow(2) * u64::from(r.p).pow(2))
+        });
+        let queue = Mutex::new(order.into_iter());
+        let results: Mutex<Vec<Option<anyhow::Result<Baked>>>> =
+            Mutex::new((0..reqs.len()).map(|_| None).collect());
+        let work = || loop {
+            let next = queue.lock().map(|mut q| q.next()).ok().flatten();
+            let Some(i) = next else { break };
+            let r = &reqs[i];
+            let b = self.get_or_bake_with(r.views, r.g, r.p, lpips, progress);
+            progress.step(&label(i));
+            if let Ok(mut v) = results.lock() {
+                v[i] = Some(b);
+            }
+        };
+        let jobs = self.jobs().min(reqs.len().max(1));
+        if jobs <= 1 {
+            work();
+        } else {
+            std::thread::scope(|s| {
+                for _ in 0..jobs {
+                    s.spawn(work);
+                }
+            });
+        }
+        results
+            .into_inner()
+            .map_err(|_| anyhow::anyhow!("a bake thread panicked"))?
+            .into_iter()
+            .enumerate()
+            .map(|(i, b)| {
+                b.unwrap_or_else(|| Err(anyhow::anyhow!("bake {} of the batch did not run", i + 1)))
+            })
+            .collect()
     }
 
     /// The folder.

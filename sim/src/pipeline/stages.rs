@@ -16,7 +16,7 @@
 //! (128, 17), Block-NeRF one bake per object at (128, 17) from the original
 //! (not enlarged) views ([`baseline_views`], [`baseline_plan`]).
 
-use super::bakes::{BakeStore, Baked, Baker};
+use super::bakes::{BakeRequest, BakeStore, Baked, Baker};
 use super::views::{score_view, ViewScores};
 use crate::bake::sweep::{Fnv64, ObjectViews};
 use crate::baselines::{self, Budget, Method, Plan, PlannedObject, DEFAULT_G, DEFAULT_P};
@@ -407,14 +407,20 @@ pub fn prepare(
         (networks.len() * points.len()) as u64,
     );
     let t1 = Instant::now();
-    let mut samples = Vec::new();
-    for n in &networks {
-        for &(g, p) in &points {
-            let b = store.get_or_bake_with(&n.views, g, p, lpips, progress)?;
-            progress.step(&format!("{} g={g} p={p}", n.name));
-            samples.push(b);
-        }
-    }
+    let reqs: Vec<BakeRequest<'_>> = networks
+        .iter()
+        .flat_map(|n| {
+            points.iter().map(|&(g, p)| BakeRequest {
+                views: &n.views,
+                g,
+                p,
+            })
+        })
+        .collect();
+    let samples = store.get_or_bake_many(&reqs, lpips, progress, &|i| {
+        let r = &reqs[i];
+        format!("{} g={} p={}", r.views.name, r.g, r.p)
+    })?;
     timings.train_s = samples.iter().map(|b| b.train_s).sum();
     timings.sample_bakes_s = t1.elapsed().as_secs_f64() - timings.train_s;
 
@@ -689,10 +695,14 @@ pub fn baseline_plan(
     progress: &dyn Progress,
 ) -> anyhow::Result<(Plan, Vec<Baked>)> {
     let mut objects = Vec::new();
-    let mut bakes = Vec::new();
-    for v in views {
-        let b = store.get_or_bake_with(v, g, p, lpips, progress)?;
-        progress.step(&format!("{} {} g={g} p={p}", method, v.name));
+    let reqs: Vec<BakeRequest<'_>> = views
+        .iter()
+        .map(|&v| BakeRequest { views: v, g, p })
+        .collect();
+    let bakes = store.get_or_bake_many(&reqs, lpips, progress, &|i| {
+        format!("{} {} g={g} p={p}", method, reqs[i].views.name)
+    })?;
+    for (v, b) in views.iter().zip(&bakes) {
         objects.push(PlannedObject {
             name: v.name.clone(),
             g,
@@ -701,7 +711,6 @@ pub fn baseline_plan(
             quality: b.sample.ssim,
             config_index: None,
         });
-        bakes.push(b);
     }
     let total: u64 = objects.iter().map(|o| o.size_bytes).sum();
     let total_quality: f64 = objects.iter().map(|o| o.quality).sum();
@@ -740,12 +749,24 @@ pub fn realise(
     );
     let mut objects = Vec::new();
     let (mut bake_s, mut train_s) = (0.0, 0.0);
-    for o in &plan.objects {
-        let v = views_of(prepared, plan.method, o)?;
-        let b = store.get_or_bake_with(v, o.g, o.p, lpips, progress)?;
+    let reqs = plan
+        .objects
+        .iter()
+        .map(|o| {
+            Ok(BakeRequest {
+                views: views_of(prepared, plan.method, o)?,
+                g: o.g,
+                p: o.p,
+            })
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let bakes = store.get_or_bake_many(&reqs, lpips, progress, &|i| {
+        let o = &plan.objects[i];
+        format!("{} g={} p={}", o.name, o.g, o.p)
+    })?;
+    for (o, b) in plan.objects.iter().zip(bakes) {
         bake_s += b.seconds;
         train_s += b.train_s;
-        progress.step(&format!("{} g={} p={}", o.name, o.g, o.p));
         objects.push(RealisedObject {
             name: o.name.clone(),
             g: o.g,
