@@ -38,6 +38,7 @@ fn ball(name: &str, radius: f32) -> ObjectViews {
         content_hash: (radius * 1000.0) as u64,
         train: cams[..6].iter().map(|c| (*c, img(c), None)).collect(),
         test: cams[6..].iter().map(|c| (*c, img(c))).collect(),
+        test_hidden: Vec::new(),
         search_box: None,
     }
 }
@@ -270,4 +271,47 @@ fn markdown_table_lists_the_chosen_configurations() {
         "| a | 128 | 17 | 42 | 2.50 | 1.00 | 0.8000 | 20.00 | 0.2500 |"
     );
     assert!(lines[4].starts_with("| b | 16 | 5 |"), "{t}");
+}
+
+/// What another object hides in a held-out view is not scored: a wrong
+/// render there costs nothing once the pixels are marked, and the mark
+/// changes nothing where the render is right.
+#[test]
+fn hidden_pixels_of_a_held_out_view_are_not_scored() {
+    use nerflex_sim::bake::bake;
+    let mut obj = ball("ball", 0.8);
+    let asset = bake(&obj.bake_views(), &BakeParams::new(12, 3))
+        .unwrap()
+        .into_asset()
+        .unwrap();
+    let plain = obj
+        .measure(&asset, &sweep::fixed_point_render, None, false)
+        .unwrap();
+    // An "occluder" over the left third of the first held-out view: the
+    // ground truth there is blank, as a segmentation's folder writes it.
+    let (w, h) = obj.test[0].1.dimensions();
+    let hidden = image::GrayImage::from_fn(w, h, |x, _| image::Luma([u8::from(x < w / 3)]));
+    for (x, _, p) in obj.test[0].1.enumerate_pixels_mut() {
+        if x < w / 3 {
+            *p = Rgba([0, 0, 0, 0]);
+        }
+    }
+    let unmarked = obj
+        .measure(&asset, &sweep::fixed_point_render, None, false)
+        .unwrap();
+    obj.test_hidden = vec![Some(hidden), None];
+    let marked = obj
+        .measure(&asset, &sweep::fixed_point_render, None, false)
+        .unwrap();
+    assert!(unmarked.views[0].psnr < plain.views[0].psnr - 1.0);
+    assert!(marked.views[0].psnr > unmarked.views[0].psnr + 1.0);
+    // The second view is untouched either way.
+    assert_eq!(marked.views[1].ssim.to_bits(), plain.views[1].ssim.to_bits());
+    // hide_unknown copies the truth exactly where marked, nowhere else.
+    let mut r = image::RgbaImage::from_pixel(4, 1, Rgba([9, 9, 9, 255]));
+    let t = image::RgbaImage::from_pixel(4, 1, Rgba([1, 2, 3, 4]));
+    let m = image::GrayImage::from_raw(4, 1, vec![0, 1, 0, 7]).unwrap();
+    sweep::hide_unknown(&mut r, &t, Some(&m));
+    let px: Vec<[u8; 4]> = r.pixels().map(|p| p.0).collect();
+    assert_eq!(px, vec![[9, 9, 9, 255], [1, 2, 3, 4], [9, 9, 9, 255], [1, 2, 3, 4]]);
 }

@@ -27,7 +27,7 @@ use crate::metrics::{Lpips, Metrics};
 /// Version of the measurement (renderer + metrics use); part of the cache
 /// key like [`BAKER_VERSION`]. 2: the renderer supersamples 2 × 2 (session
 /// 6), so samples measured with one sample per pixel are not reused.
-pub const MEASURE_VERSION: u32 = 2;
+pub const MEASURE_VERSION: u32 = 3;
 
 /// Version of the carving's treatment of other objects' pixels (unknown,
 /// not background); part of the cache key of objects whose views show
@@ -188,6 +188,10 @@ pub struct ObjectViews {
     pub train: Vec<TrainView>,
     /// Held-out views: camera and ground-truth image of the object alone.
     pub test: Vec<(Camera, RgbaImage)>,
+    /// Per held-out view, the pixels another object covers (nonzero), where
+    /// this object's appearance is unknown: [`ObjectViews::measure`] does
+    /// not score them. Empty when no held-out view has such pixels.
+    pub test_hidden: Vec<Option<image::GrayImage>>,
     /// Where to look for the object (from `scene.json`), if known.
     pub search_box: Option<super::Aabb>,
 }
@@ -279,11 +283,32 @@ impl ObjectViews {
                 (f.camera, img)
             })
             .collect();
+        // Another object in front (or, in a segmentation's group folder,
+        // any pixel marked 255) hides what this object looks like there.
+        let hidden: Vec<Option<image::GrayImage>> = cap
+            .test
+            .iter()
+            .map(|f| match (label, &f.mask) {
+                (Some(l), Some(m)) if m.pixels().any(|v| v.0[0] != 0 && v.0[0] != l) => {
+                    Some(image::GrayImage::from_fn(m.width(), m.height(), |x, y| {
+                        let v = m.get_pixel(x, y).0[0];
+                        image::Luma([u8::from(v != 0 && v != l)])
+                    }))
+                }
+                _ => None,
+            })
+            .collect();
+        let test_hidden = if hidden.iter().any(Option::is_some) {
+            hidden
+        } else {
+            Vec::new()
+        };
         Ok(Self {
             name,
             content_hash,
             train,
             test,
+            test_hidden,
             search_box,
         })
     }
@@ -296,6 +321,19 @@ impl ObjectViews {
             mask.as_ref()
                 .is_some_and(|(m, label)| m.as_raw().iter().any(|&v| v != 0 && v != *label))
         })
+    }
+
+    /// Renders `asset` from every held-out view and scores it against the
+    /// ground truth, leaving out the pixels another object hides
+    /// ([`ObjectViews::test_hidden`]).
+    pub fn measure(
+        &self,
+        asset: &Asset,
+        render: &RenderFn<'_>,
+        lpips: Option<&Lpips>,
+        keep_renders: bool,
+    ) -> anyhow::Result<Measured> {
+        measure_views_hiding(asset, &self.test, &self.test_hidden, render, lpips, keep_renders)
     }
 
     /// The training views as the baker takes them.
@@ -373,6 +411,37 @@ pub fn measure_views(
     lpips: Option<&Lpips>,
     keep_renders: bool,
 ) -> anyhow::Result<Measured> {
+    measure_views_hiding(obj, test, &[], render, lpips, keep_renders)
+}
+
+/// Copies the ground truth into `render` where `hidden` is nonzero: those
+/// pixels then score as perfect in every metric, so what another object
+/// hides in a held-out view (the object may well be there, behind it)
+/// neither rewards nor penalises a bake. The score of a view that is mostly
+/// hidden is high for every bake alike; the differences between bakes come
+/// from the visible pixels.
+pub fn hide_unknown(render: &mut RgbaImage, truth: &RgbaImage, hidden: Option<&image::GrayImage>) {
+    let Some(h) = hidden else { return };
+    if h.dimensions() != render.dimensions() || truth.dimensions() != render.dimensions() {
+        return; // Metrics::compare reports the size mismatch.
+    }
+    for ((r, t), m) in render.pixels_mut().zip(truth.pixels()).zip(h.pixels()) {
+        if m.0[0] != 0 {
+            *r = *t;
+        }
+    }
+}
+
+/// [`measure_views`] leaving out each view's `hidden` pixels (one entry per
+/// view, or an empty slice for none).
+pub fn measure_views_hiding(
+    obj: &Asset,
+    test: &[(Camera, RgbaImage)],
+    hidden: &[Option<image::GrayImage>],
+    render: &RenderFn<'_>,
+    lpips: Option<&Lpips>,
+    keep_renders: bool,
+) -> anyhow::Result<Measured> {
     if test.is_empty() {
         bail!("no test views to measure against");
     }
@@ -380,7 +449,8 @@ pub fn measure_views(
     let mut renders = Vec::new();
     let mut views = Vec::with_capacity(test.len());
     for (i, (cam, gt)) in test.iter().enumerate() {
-        let img = render(obj, cam).with_context(|| format!("rendering test view {i}"))?;
+        let mut img = render(obj, cam).with_context(|| format!("rendering test view {i}"))?;
+        hide_unknown(&mut img, gt, hidden.get(i).and_then(Option::as_ref));
         let s = Metrics::compare(&img, gt, lpips)
             .with_context(|| format!("measuring test view {i}"))?;
         let psnr = s.psnr.min(100.0); // identical images: cap inf at 100 dB
@@ -464,7 +534,7 @@ fn measure_baked(
     let (quads, gpu_bytes) = (baked.quads.len() as u64, baked.gpu_bytes());
     let asset = baked.into_asset()?;
     let size_bytes = super::file_bytes(&asset)?;
-    let (q, _) = measure(&asset, &obj.test, render, lpips, false)?;
+    let q = obj.measure(&asset, render, lpips, false)?.mean;
     Ok(Sample {
         object: obj.name.clone(),
         g,

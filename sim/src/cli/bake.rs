@@ -296,13 +296,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     if args.measure {
         let net = lpips(&args)?;
-        let m = sweep::measure_views(
-            &asset,
-            &obj.test,
-            &sweep::fixed_point_render,
-            net.as_ref(),
-            args.renders.is_some(),
-        )?;
+        let m = obj.measure(&asset, &sweep::fixed_point_render, net.as_ref(), args.renders.is_some())?;
         let (q, renders) = (m.mean, m.renders);
         for (i, v) in m.views.iter().enumerate() {
             println!("  test view {i}: {}", quality_line(v));
@@ -382,13 +376,7 @@ fn run_compare(args: &Args, out: &std::path::Path) -> anyhow::Result<()> {
         let (quads, gpu) = (baked.quads.len(), baked.gpu_bytes());
         let asset = baked.into_asset()?;
         let file = bake::file_bytes(&asset)?;
-        let m = sweep::measure_views(
-            &asset,
-            &obj.test,
-            &sweep::fixed_point_render,
-            net.as_ref(),
-            true,
-        )?;
+        let m = obj.measure(&asset, &sweep::fixed_point_render, net.as_ref(), true)?;
         println!(
             "{} g={g} p={p}: {quads} quads, {file} file bytes, {gpu} GPU bytes, bake {t_bake:.2} s",
             obj.name

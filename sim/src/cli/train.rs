@@ -245,7 +245,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mut sums = (0.0, 0.0, 0.0, 0usize);
         println!("view   PSNR dB   SSIM     LPIPS");
         for (i, (camera, truth)) in views.test.iter().enumerate() {
-            let img = render_view(&grid, camera, step);
+            let mut img = render_view(&grid, camera, step);
+            let hidden = views.test_hidden.get(i).and_then(Option::as_ref);
+            crate::bake::sweep::hide_unknown(&mut img, truth, hidden);
             let s = Metrics::compare(&img, truth, lpips.as_ref())?;
             println!(
                 "{i:>4}   {:7.3}   {:.4}   {}",

@@ -415,7 +415,9 @@ impl BakeStore {
         let size_bytes = asset
             .write(&tmp.join("asset"))
             .with_context(|| format!("writing {}", tmp.display()))?;
-        let (q, _) = sweep::measure(&asset, &obj.test, &sweep::fixed_point_render, lpips, false)
+        let q = obj
+            .measure(&asset, &sweep::fixed_point_render, lpips, false)
+            .map(|m| m.mean)
             .with_context(|| format!("measuring {} at g={g} p={p}", obj.name))?;
         let sample = Sample {
             object: obj.name.clone(),

@@ -284,26 +284,74 @@ fn input_capture(
 /// Every view of a capture as one object (alpha = silhouette of all its
 /// objects): a shared network, or Single-NeRF's whole scene.
 pub fn whole_capture_views(cap: &Capture, name: &str) -> ObjectViews {
+    use crate::capture::OTHER_OBJECTS_MASK_VALUE as OTHER;
+    // A segmentation group folder of several objects marks the pixels of
+    // objects outside the group: there the group's look is unknown (it may
+    // be behind), not background. Such views get a two-value instance mask
+    // (group = 1, outside = OTHER), which the carver, the trainer and the
+    // measure already read as "unknown". A capture without the marker (a
+    // whole scene: Single-NeRF) keeps its alpha and its key.
+    let marked = |m: &image::GrayImage| m.pixels().any(|v| v.0[0] == OTHER);
+    let label_is_other = cap
+        .scene
+        .as_ref()
+        .is_some_and(|s| s.objects.iter().any(|o| o.mask_value == OTHER));
+    let group = !label_is_other
+        && cap
+            .train
+            .iter()
+            .chain(&cap.test)
+            .any(|f| f.mask.as_ref().is_some_and(marked));
+    let group_mask = |m: &image::GrayImage| {
+        image::GrayImage::from_fn(m.width(), m.height(), |x, y| {
+            image::Luma([match m.get_pixel(x, y).0[0] {
+                0 => 0,
+                OTHER => OTHER,
+                _ => 1,
+            }])
+        })
+    };
     let mut h = Fnv64::default();
     h.write(name.as_bytes());
     h.write(b"whole-capture");
     for f in cap.train.iter().chain(&cap.test) {
         h.write(format!("{:?}", f.camera).as_bytes());
         h.write(f.image.as_raw());
+        if let (true, Some(m)) = (group, &f.mask) {
+            h.write(m.as_raw());
+        }
     }
+    let test_hidden = if group {
+        cap.test
+            .iter()
+            .map(|f| {
+                f.mask.as_ref().filter(|m| marked(m)).map(|m| {
+                    image::GrayImage::from_fn(m.width(), m.height(), |x, y| {
+                        image::Luma([u8::from(m.get_pixel(x, y).0[0] == OTHER)])
+                    })
+                })
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     ObjectViews {
         name: name.to_string(),
         content_hash: h.finish(),
         train: cap
             .train
             .iter()
-            .map(|f| (f.camera, f.image.clone(), None))
+            .map(|f| {
+                let mask = f.mask.as_ref().filter(|_| group).map(|m| (group_mask(m), 1));
+                (f.camera, f.image.clone(), mask)
+            })
             .collect(),
         test: cap
             .test
             .iter()
             .map(|f| (f.camera, f.image.clone()))
             .collect(),
+        test_hidden,
         search_box: None,
     }
 }
@@ -676,6 +724,7 @@ fn composite_block_views(dirs: &[PathBuf], size: u32) -> anyhow::Result<Vec<Obje
                     .map(|f| (f.camera, f.image.clone(), None))
                     .collect(),
                 test: c.test.iter().map(|f| (f.camera, f.image.clone())).collect(),
+                test_hidden: Vec::new(),
                 search_box: None,
             })
         })
@@ -1037,6 +1086,7 @@ mod tests {
                 })
                 .collect(),
             test: Vec::new(),
+            test_hidden: Vec::new(),
             search_box: None,
         }
     }

@@ -496,6 +496,7 @@ mod tests {
             content_hash: 0,
             train: views,
             test,
+            test_hidden: Vec::new(),
             search_box: Some(cube),
         };
         (gt, ov)
