@@ -504,8 +504,12 @@ fn settings(opts: &EvalOptions, lpips: bool) -> Vec<(String, String)> {
         (
             "profiler sample points".into(),
             format!(
-                "g from {} to {} (×3 steps) × p ∈ {{{}, middle, {}}}",
-                p.sample_grid.0, p.sample_grid.1, p.sample_patch.0, p.sample_patch.1
+                "g from {} to {} (×{} steps) × p ∈ {{{}, middle, {}}}",
+                p.sample_grid.0,
+                p.sample_grid.1,
+                p.sample_step.factor(),
+                p.sample_patch.0,
+                p.sample_patch.1
             ),
         ),
         (

@@ -306,12 +306,18 @@ fn hidden_pixels_of_a_held_out_view_are_not_scored() {
     assert!(unmarked.views[0].psnr < plain.views[0].psnr - 1.0);
     assert!(marked.views[0].psnr > unmarked.views[0].psnr + 1.0);
     // The second view is untouched either way.
-    assert_eq!(marked.views[1].ssim.to_bits(), plain.views[1].ssim.to_bits());
+    assert_eq!(
+        marked.views[1].ssim.to_bits(),
+        plain.views[1].ssim.to_bits()
+    );
     // hide_unknown copies the truth exactly where marked, nowhere else.
     let mut r = image::RgbaImage::from_pixel(4, 1, Rgba([9, 9, 9, 255]));
     let t = image::RgbaImage::from_pixel(4, 1, Rgba([1, 2, 3, 4]));
     let m = image::GrayImage::from_raw(4, 1, vec![0, 1, 0, 7]).unwrap();
     sweep::hide_unknown(&mut r, &t, Some(&m));
     let px: Vec<[u8; 4]> = r.pixels().map(|p| p.0).collect();
-    assert_eq!(px, vec![[9, 9, 9, 255], [1, 2, 3, 4], [9, 9, 9, 255], [1, 2, 3, 4]]);
+    assert_eq!(
+        px,
+        vec![[9, 9, 9, 255], [1, 2, 3, 4], [9, 9, 9, 255], [1, 2, 3, 4]]
+    );
 }

@@ -315,6 +315,8 @@ fn hull_bakes_two_at_a_time_are_the_bakes_one_at_a_time_in_order() {
     // A bad request fails the batch with its own error, after the others.
     let mut bad = reqs.clone();
     bad[2].g = 0;
-    let err = two.get_or_bake_many(&bad, None, &Quiet, &label).unwrap_err();
+    let err = two
+        .get_or_bake_many(&bad, None, &Quiet, &label)
+        .unwrap_err();
     assert!(format!("{err:#}").contains("g=0"), "{err:#}");
 }

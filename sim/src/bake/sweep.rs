@@ -333,7 +333,14 @@ impl ObjectViews {
         lpips: Option<&Lpips>,
         keep_renders: bool,
     ) -> anyhow::Result<Measured> {
-        measure_views_hiding(asset, &self.test, &self.test_hidden, render, lpips, keep_renders)
+        measure_views_hiding(
+            asset,
+            &self.test,
+            &self.test_hidden,
+            render,
+            lpips,
+            keep_renders,
+        )
     }
 
     /// The training views as the baker takes them.

@@ -296,7 +296,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     if args.measure {
         let net = lpips(&args)?;
-        let m = obj.measure(&asset, &sweep::fixed_point_render, net.as_ref(), args.renders.is_some())?;
+        let m = obj.measure(
+            &asset,
+            &sweep::fixed_point_render,
+            net.as_ref(),
+            args.renders.is_some(),
+        )?;
         let (q, renders) = (m.mean, m.renders);
         for (i, v) in m.views.iter().enumerate() {
             println!("  test view {i}: {}", quality_line(v));

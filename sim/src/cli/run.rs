@@ -63,9 +63,11 @@ pub struct PipelineArgs {
     pub store: Option<PathBuf>,
     /// Baker: `trained` (a radiance field trained per network, kept in
     /// STORE/fields, baked and fine-tuned) or `hull` (visual hull, no
-    /// training) [default: hull, or trained when a training flag is given:
-    /// on the built-in scenes' small captures the trained baker is still
-    /// measured below the hull baker and slower (README, "The main job")].
+    /// training) [default: trained for `nerflex eval` at the paper scale
+    /// (800 px) or when a training flag is given; hull otherwise: on the
+    /// small captures of `run`, `--quick` and `--scale reduced` the trained
+    /// baker is still measured below the hull baker and slower (README,
+    /// "The main job")].
     #[arg(long, value_parser = parse_baker)]
     pub baker: Option<BakerName>,
     /// The trained baker's training schedule, `RES:STEPS` comma-separated
@@ -117,6 +119,7 @@ impl PipelineArgs {
         let configs = scale.configs();
         opts.sample_grid = configs.sample_grid;
         opts.sample_patch = configs.sample_patch;
+        opts.sample_step = configs.sample_step;
         opts.space_grid = configs.space_grid;
         opts.space_patch = configs.space_patch;
         opts.sim = SimOptions {
@@ -132,11 +135,13 @@ impl PipelineArgs {
     fn baker_at(&self, scale: Scale) -> anyhow::Result<Baker> {
         let trained_flags =
             !self.train_levels.is_empty() || self.train_batch.is_some() || self.epochs.is_some();
-        let name = self.baker.unwrap_or(if trained_flags {
-            BakerName::Trained
-        } else {
-            BakerName::Hull
-        });
+        let name = self
+            .baker
+            .unwrap_or(if trained_flags || scale == Scale::Paper {
+                BakerName::Trained
+            } else {
+                BakerName::Hull
+            });
         match name {
             BakerName::Hull if trained_flags => bail!(
                 "--train-levels, --train-batch and --epochs are for --baker trained, not --baker hull"
@@ -381,6 +386,16 @@ mod tests {
         assert_eq!(o.baker.name(), "trained");
         let o = options(&["--baker", "hull"]).unwrap();
         assert_eq!(o.baker, Baker::Hull);
+        // The paper scale bakes trained assets unless told otherwise.
+        let paper = |flags: &[&str]| {
+            let cli =
+                Cli::try_parse_from(std::iter::once("x").chain(flags.iter().copied())).unwrap();
+            cli.pipeline
+                .options_at(Path::new("OUT"), Scale::Paper)
+                .unwrap()
+        };
+        assert_eq!(paper(&[]).baker, Scale::Paper.baker());
+        assert_eq!(paper(&["--baker", "hull"]).baker, Baker::Hull);
         let o = options(&["--train-levels", "32:10,48:20", "--epochs", "0.5"]).unwrap();
         let Baker::Trained(t) = &o.baker else {
             panic!("not trained: {:?}", o.baker)

@@ -173,7 +173,8 @@ impl BakeStore {
     }
 
     /// Every request's bake, in the order given, [`BakeStore::jobs`] at a
-    /// time, largest (g²·p²) first so the last ones to finish are short;
+    /// time (when more than one: largest, g²·p², first, so the last ones to
+    /// finish are short);
     /// `progress` steps once per bake with `label(i)`. The first error in
     /// request order is returned, after every started bake has finished.
     ///
@@ -187,11 +188,16 @@ impl BakeStore {
         progress: &dyn Progress,
         label: &(dyn Fn(usize) -> String + Sync),
     ) -> anyhow::Result<Vec<Baked>> {
+        let jobs = self.jobs().min(reqs.len().max(1));
         let mut order: Vec<usize> = (0..reqs.len()).collect();
-        order.sort_by_key(|&i| {
-            let r = &reqs[i];
-            std::cmp::Reverse(u64::from(r.g).pow(2) * u64::from(r.p).pow(2))
-        });
+        // One at a time keeps the given order, so consecutive bakes of one
+        // network share the field kept in memory.
+        if jobs > 1 {
+            order.sort_by_key(|&i| {
+                let r = &reqs[i];
+                std::cmp::Reverse(u64::from(r.g).pow(2) * u64::from(r.p).pow(2))
+            });
+        }
         let queue = Mutex::new(order.into_iter());
         let results: Mutex<Vec<Option<anyhow::Result<Baked>>>> =
             Mutex::new((0..reqs.len()).map(|_| None).collect());
@@ -205,7 +211,6 @@ impl BakeStore {
                 v[i] = Some(b);
             }
         };
-        let jobs = self.jobs().min(reqs.len().max(1));
         if jobs <= 1 {
             work();
         } else {

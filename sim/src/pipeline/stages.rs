@@ -67,10 +67,12 @@ pub struct Options {
     pub train_views: usize,
     /// Held-out views of a generated capture.
     pub test_views: usize,
-    /// Profiler sample points: g range (variable step ×3 from the low end).
+    /// Profiler sample points: g range (variable step from the low end).
     pub sample_grid: (u32, u32),
     /// Profiler sample points: p range (low, middle, high).
     pub sample_patch: (u32, u32),
+    /// Profiler sample points: how g steps (×3 or ×2).
+    pub sample_step: fit::sampling::Step,
     /// The planner's configuration space: g values.
     pub space_grid: Vec<u32>,
     /// The planner's configuration space: p values.
@@ -108,6 +110,7 @@ impl Options {
             test_views: 4,
             sample_grid: configs.sample_grid,
             sample_patch: configs.sample_patch,
+            sample_step: configs.sample_step,
             space_grid: configs.space_grid,
             space_patch: configs.space_patch,
             turntable: TurntableSpec::DEFAULT,
@@ -342,7 +345,11 @@ pub fn whole_capture_views(cap: &Capture, name: &str) -> ObjectViews {
             .train
             .iter()
             .map(|f| {
-                let mask = f.mask.as_ref().filter(|_| group).map(|m| (group_mask(m), 1));
+                let mask = f
+                    .mask
+                    .as_ref()
+                    .filter(|_| group)
+                    .map(|m| (group_mask(m), 1));
                 (f.camera, f.image.clone(), mask)
             })
             .collect(),
@@ -443,7 +450,7 @@ pub fn prepare(
     let plan = fit::sampling::variable_step(
         opts.sample_grid.0..=opts.sample_grid.1,
         opts.sample_patch.0..=opts.sample_patch.1,
-        fit::sampling::Step::Triple,
+        opts.sample_step,
     )
     .map_err(|e| anyhow::anyhow!("profiler sample points: {e}"))?;
     let points = plan.points();
@@ -1100,5 +1107,62 @@ mod tests {
         assert_ne!(some.content_hash, 7);
         let other = drop_absent_views(views(&[false, true, true]));
         assert_ne!(other.content_hash, some.content_hash);
+    }
+
+    /// A capture of 4×4 frames whose masks are `masks` (train then test).
+    fn capture_of(train: &[GrayImage], test: &[GrayImage]) -> Capture {
+        let cam = Camera {
+            intrinsics: Intrinsics::from_fov_x(0.8, 4, 4),
+            c2w: glam::Mat4::IDENTITY,
+        };
+        let frame = |m: &GrayImage| crate::capture::Frame {
+            file_path: "./train/r_0".into(),
+            camera: cam,
+            image: RgbaImage::new(4, 4),
+            mask: Some(m.clone()),
+        };
+        Capture {
+            dir: PathBuf::from("cap"),
+            camera_angle_x: 0.8,
+            train: train.iter().map(frame).collect(),
+            test: test.iter().map(frame).collect(),
+            scene: None,
+        }
+    }
+
+    #[test]
+    fn a_group_folder_marks_outside_objects_unknown_and_a_whole_scene_keeps_alpha() {
+        use crate::capture::OTHER_OBJECTS_MASK_VALUE as OTHER;
+        let mut a = GrayImage::new(4, 4);
+        a.put_pixel(0, 0, Luma([1]));
+        a.put_pixel(1, 0, Luma([2]));
+        let mut b = a.clone();
+        b.put_pixel(3, 3, Luma([OTHER]));
+        // A whole scene (labels only): alpha silhouettes, nothing hidden.
+        let whole = whole_capture_views(&capture_of(&[a.clone()], &[a.clone()]), "single");
+        assert!(whole.train[0].2.is_none() && whole.test_hidden.is_empty());
+        // A group folder (some 255): group = 1, outside = 255, hidden marked.
+        let group = whole_capture_views(&capture_of(&[b.clone()], &[a.clone(), b.clone()]), "g");
+        let (m, label) = group.train[0].2.as_ref().expect("a group mask");
+        assert_eq!(*label, 1);
+        assert_eq!(
+            (
+                m.get_pixel(0, 0).0[0],
+                m.get_pixel(1, 0).0[0],
+                m.get_pixel(3, 3).0[0],
+                m.get_pixel(2, 2).0[0]
+            ),
+            (1, 1, OTHER, 0)
+        );
+        assert_eq!(group.test_hidden.len(), 2);
+        assert!(group.test_hidden[0].is_none());
+        let h = group.test_hidden[1]
+            .as_ref()
+            .expect("the second test view hides a pixel");
+        assert_eq!(h.pixels().filter(|v| v.0[0] != 0).count(), 1);
+        assert_eq!(h.get_pixel(3, 3).0[0], 1);
+        // The masks are part of a group's key.
+        let other = whole_capture_views(&capture_of(&[b.clone()], &[b.clone(), b.clone()]), "g");
+        assert_ne!(other.content_hash, group.content_hash);
     }
 }
