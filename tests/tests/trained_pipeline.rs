@@ -312,7 +312,7 @@ fn hull_bakes_two_at_a_time_are_the_bakes_one_at_a_time_in_order() {
             .jobs(),
         1
     );
-    // A bad request fails the batch with its own error, after the others.
+    // A bad request fails the batch with its own error.
     let mut bad = reqs.clone();
     bad[2].g = 0;
     let err = two

@@ -164,7 +164,8 @@ impl BakeStore {
     /// Bakes running at once in [`BakeStore::get_or_bake_many`]: the
     /// store's `jobs` for the hull baker; one for the trained baker, whose
     /// bakes share a field that one of them may be training and each hold
-    /// G-buffers of every training view (about 2 GB at 800 × 800).
+    /// G-buffers of every training view (one network's (128, 17) bake from
+    /// 50 views at 800 px peaked at 2.5 GB).
     pub fn jobs(&self) -> usize {
         match self.baker {
             Baker::Hull => self.jobs,
@@ -175,8 +176,9 @@ impl BakeStore {
     /// Every request's bake, in the order given, [`BakeStore::jobs`] at a
     /// time (when more than one: largest, g²·p², first, so the last ones to
     /// finish are short);
-    /// `progress` steps once per bake with `label(i)`. The first error in
-    /// request order is returned, after every started bake has finished.
+    /// `progress` steps once per bake with `label(i)`. After a failure no
+    /// new bake starts; the first failure in request order is returned once
+    /// the started bakes have finished.
     ///
     /// Why: a hull bake keeps about 1.5 of two cores busy (its encoding and
     /// measuring are partly serial); two at once took `nerflex eval --quick`
@@ -201,14 +203,24 @@ impl BakeStore {
         let queue = Mutex::new(order.into_iter());
         let results: Mutex<Vec<Option<anyhow::Result<Baked>>>> =
             Mutex::new((0..reqs.len()).map(|_| None).collect());
+        // After a failure no new bake starts (the batch fails anyway).
+        let failed = std::sync::atomic::AtomicBool::new(false);
         let work = || loop {
+            if failed.load(std::sync::atomic::Ordering::Relaxed) {
+                break;
+            }
             let next = queue.lock().map(|mut q| q.next()).ok().flatten();
             let Some(i) = next else { break };
             let r = &reqs[i];
             let b = self.get_or_bake_with(r.views, r.g, r.p, lpips, progress);
+            if b.is_err() {
+                failed.store(true, std::sync::atomic::Ordering::Relaxed);
+            }
             progress.step(&label(i));
             if let Ok(mut v) = results.lock() {
-                v[i] = Some(b);
+                if let Some(slot) = v.get_mut(i) {
+                    *slot = Some(b);
+                }
             }
         };
         if jobs <= 1 {
@@ -220,9 +232,16 @@ impl BakeStore {
                 }
             });
         }
-        results
+        let mut results = results
             .into_inner()
-            .map_err(|_| anyhow::anyhow!("a bake thread panicked"))?
+            .map_err(|_| anyhow::anyhow!("a bake thread panicked"))?;
+        // The first failure in request order, not a bake it kept from running.
+        if let Some(i) = results.iter().position(|b| matches!(b, Some(Err(_)))) {
+            if let Some(Some(Err(e))) = results.get_mut(i).map(Option::take) {
+                return Err(e);
+            }
+        }
+        results
             .into_iter()
             .enumerate()
             .map(|(i, b)| {
