@@ -492,6 +492,7 @@ pub fn run(
 
 fn settings(opts: &EvalOptions, lpips: bool) -> Vec<(String, String)> {
     let p = &opts.pipeline;
+    let c = &p.configs;
     let list = |v: &[u32]| v.iter().map(u32::to_string).collect::<Vec<_>>().join(", ");
     vec![
         (
@@ -505,19 +506,19 @@ fn settings(opts: &EvalOptions, lpips: bool) -> Vec<(String, String)> {
             "profiler sample points".into(),
             format!(
                 "g from {} to {} (×{} steps) × p ∈ {{{}, middle, {}}}",
-                p.sample_grid.0,
-                p.sample_grid.1,
-                p.sample_step.factor(),
-                p.sample_patch.0,
-                p.sample_patch.1
+                c.sample_grid.0,
+                c.sample_grid.1,
+                c.sample_step.factor(),
+                c.sample_patch.0,
+                c.sample_patch.1
             ),
         ),
         (
             "planner's configurations".into(),
             format!(
                 "g ∈ {{{}}} × p ∈ {{{}}}",
-                list(&p.space_grid),
-                list(&p.space_patch)
+                list(&c.space_grid),
+                list(&c.space_patch)
             ),
         ),
         (

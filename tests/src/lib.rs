@@ -8,6 +8,18 @@ use nerflex_sim::procedural::{
 };
 use std::path::{Path, PathBuf};
 
+/// The suite's tiny profiler and planner grids: samples g ∈ {8, 24} ×
+/// p ∈ {3, 4, 5}, planning over g ∈ {8, 12, 16, 24} × p ∈ {3, 4, 5}.
+pub fn tiny_configs() -> nerflex_sim::eval::scale::Configs {
+    nerflex_sim::eval::scale::Configs {
+        sample_grid: (8, 24),
+        sample_patch: (3, 5),
+        sample_step: nerflex_sim::fit::sampling::Step::Triple,
+        space_grid: vec![8, 12, 16, 24],
+        space_patch: vec![3, 4, 5],
+    }
+}
+
 /// Renders without the slow effects (edge and texture supersampling,
 /// shadows, ambient occlusion): what the suite's small captures use.
 pub fn fast_render() -> RenderOptions {

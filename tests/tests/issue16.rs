@@ -21,10 +21,7 @@ fn tiny(dir: &Path) -> (EvalReport, PathBuf) {
     p.size = 48;
     p.train_views = 6;
     p.test_views = 3;
-    p.sample_grid = (8, 24);
-    p.sample_patch = (3, 5);
-    p.space_grid = vec![8, 12, 16, 24];
-    p.space_patch = vec![3, 4, 5];
+    p.configs = nerflex_tests::tiny_configs();
     p.turntable = TurntableSpec {
         angles: 6,
         coverage_width: 40,

@@ -19,10 +19,7 @@ fn tiny(store: &Path) -> Options {
     o.size = 48;
     o.train_views = 6;
     o.test_views = 2;
-    o.sample_grid = (8, 24);
-    o.sample_patch = (3, 5);
-    o.space_grid = vec![8, 12, 16, 24];
-    o.space_patch = vec![3, 4, 5];
+    o.configs = nerflex_tests::tiny_configs();
     o.turntable = TurntableSpec {
         angles: 8,
         coverage_width: 48,

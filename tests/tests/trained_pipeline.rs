@@ -150,10 +150,7 @@ fn hull_and_trained_bakes_never_share_a_key() {
 fn tiny_options(store: &Path) -> Options {
     let mut o = Options::reduced(store.to_path_buf());
     o.baker = tiny_baker();
-    o.sample_grid = (8, 24);
-    o.sample_patch = (3, 5);
-    o.space_grid = vec![8, 12, 16, 24];
-    o.space_patch = vec![3, 4, 5];
+    o.configs = nerflex_tests::tiny_configs();
     o.baseline = (16, 5);
     o.turntable = TurntableSpec {
         angles: 6,

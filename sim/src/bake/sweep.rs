@@ -290,10 +290,7 @@ impl ObjectViews {
             .iter()
             .map(|f| match (label, &f.mask) {
                 (Some(l), Some(m)) if m.pixels().any(|v| v.0[0] != 0 && v.0[0] != l) => {
-                    Some(image::GrayImage::from_fn(m.width(), m.height(), |x, y| {
-                        let v = m.get_pixel(x, y).0[0];
-                        image::Luma([u8::from(v != 0 && v != l)])
-                    }))
+                    Some(map_mask(m, |v| u8::from(v != 0 && v != l)))
                 }
                 _ => None,
             })
@@ -419,6 +416,12 @@ pub fn measure_views(
     keep_renders: bool,
 ) -> anyhow::Result<Measured> {
     measure_views_hiding(obj, test, &[], render, lpips, keep_renders)
+}
+
+/// The mask `m` with every value `v` replaced by `f(v)`.
+pub fn map_mask(m: &image::GrayImage, f: impl Fn(u8) -> u8) -> image::GrayImage {
+    let (w, h) = m.dimensions();
+    image::GrayImage::from_fn(w, h, |x, y| image::Luma([f(m.get_pixel(x, y).0[0])]))
 }
 
 /// Copies the ground truth into `render` where `hidden` is nonzero: those

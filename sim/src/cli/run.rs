@@ -116,12 +116,7 @@ impl PipelineArgs {
         opts.size = size;
         opts.train_views = views;
         opts.test_views = test_views;
-        let configs = scale.configs();
-        opts.sample_grid = configs.sample_grid;
-        opts.sample_patch = configs.sample_patch;
-        opts.sample_step = configs.sample_step;
-        opts.space_grid = configs.space_grid;
-        opts.space_patch = configs.space_patch;
+        opts.configs = scale.configs();
         opts.sim = SimOptions {
             frames,
             ..SimOptions::default()

@@ -143,7 +143,8 @@ impl Scale {
 /// [`Scale`].
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Configs {
-    /// Sample points: g range (variable step ×3 from the low end).
+    /// Sample points: g range (variable step from the low end, by
+    /// `sample_step`).
     pub sample_grid: (u32, u32),
     /// Sample points: p range (low, middle, high).
     pub sample_patch: (u32, u32),

@@ -23,6 +23,7 @@ use crate::baselines::{self, Budget, Method, Plan, PlannedObject, DEFAULT_G, DEF
 use crate::camera::Camera;
 use crate::capture::Capture;
 use crate::device::Device;
+use crate::eval::scale::Configs;
 use crate::fit;
 use crate::metrics::{Lpips, Metrics};
 use crate::procedural::{arrange, make_capture, CaptureSpec, Layout, Preset, RenderOptions};
@@ -67,16 +68,8 @@ pub struct Options {
     pub train_views: usize,
     /// Held-out views of a generated capture.
     pub test_views: usize,
-    /// Profiler sample points: g range (variable step from the low end).
-    pub sample_grid: (u32, u32),
-    /// Profiler sample points: p range (low, middle, high).
-    pub sample_patch: (u32, u32),
-    /// Profiler sample points: how g steps (×3 or ×2).
-    pub sample_step: fit::sampling::Step,
-    /// The planner's configuration space: g values.
-    pub space_grid: Vec<u32>,
-    /// The planner's configuration space: p values.
-    pub space_patch: Vec<u32>,
+    /// The profiler's sample points and the planner's configurations.
+    pub configs: Configs,
     /// The turntable.
     pub turntable: TurntableSpec,
     /// Frames and period.
@@ -103,16 +96,11 @@ impl Options {
     /// planning over g ∈ {16, 24, 32, 48, 64, 96, 128, 144} ×
     /// p ∈ {3, 5, 7, 9, 11, 13, 15, 17} (64 configurations per object).
     pub fn reduced(store: PathBuf) -> Options {
-        let configs = crate::eval::scale::Scale::Reduced.configs();
         Options {
             size: 160,
             train_views: 16,
             test_views: 4,
-            sample_grid: configs.sample_grid,
-            sample_patch: configs.sample_patch,
-            sample_step: configs.sample_step,
-            space_grid: configs.space_grid,
-            space_patch: configs.space_patch,
+            configs: crate::eval::scale::Scale::Reduced.configs(),
             turntable: TurntableSpec::DEFAULT,
             sim: SimOptions::default(),
             store,
@@ -306,12 +294,10 @@ pub fn whole_capture_views(cap: &Capture, name: &str) -> ObjectViews {
             .chain(&cap.test)
             .any(|f| f.mask.as_ref().is_some_and(marked));
     let group_mask = |m: &image::GrayImage| {
-        image::GrayImage::from_fn(m.width(), m.height(), |x, y| {
-            image::Luma([match m.get_pixel(x, y).0[0] {
-                0 => 0,
-                OTHER => OTHER,
-                _ => 1,
-            }])
+        crate::bake::sweep::map_mask(m, |v| match v {
+            0 => 0,
+            OTHER => OTHER,
+            _ => 1,
         })
     };
     let mut h = Fnv64::default();
@@ -328,11 +314,10 @@ pub fn whole_capture_views(cap: &Capture, name: &str) -> ObjectViews {
         cap.test
             .iter()
             .map(|f| {
-                f.mask.as_ref().filter(|m| marked(m)).map(|m| {
-                    image::GrayImage::from_fn(m.width(), m.height(), |x, y| {
-                        image::Luma([u8::from(m.get_pixel(x, y).0[0] == OTHER)])
-                    })
-                })
+                f.mask
+                    .as_ref()
+                    .filter(|m| marked(m))
+                    .map(|m| crate::bake::sweep::map_mask(m, |v| u8::from(v == OTHER)))
             })
             .collect()
     } else {
@@ -448,9 +433,9 @@ pub fn prepare(
     // The profiler's sample points (timed with the fit below).
     let t_points = Instant::now();
     let plan = fit::sampling::variable_step(
-        opts.sample_grid.0..=opts.sample_grid.1,
-        opts.sample_patch.0..=opts.sample_patch.1,
-        opts.sample_step,
+        opts.configs.sample_grid.0..=opts.configs.sample_grid.1,
+        opts.configs.sample_patch.0..=opts.configs.sample_patch.1,
+        opts.configs.sample_step,
     )
     .map_err(|e| anyhow::anyhow!("profiler sample points: {e}"))?;
     let points = plan.points();
@@ -485,8 +470,8 @@ pub fn prepare(
     let fits = fit::fit_objects(&fit_samples, &[], None, fit::FamilyChoice::Auto)
         .context("fitting the profiles")?;
     let space = fit::profiles::Space {
-        grids: opts.space_grid.clone(),
-        patches: opts.space_patch.clone(),
+        grids: opts.configs.space_grid.clone(),
+        patches: opts.configs.space_patch.clone(),
     };
     let scene_json = fit::profiles::scene_json(&fits, |_| points.clone(), &space)
         .context("writing the profiles")?;
