@@ -25,6 +25,7 @@ pub mod compare;
 pub mod detail;
 pub mod honesty;
 pub mod plots;
+pub mod renders;
 pub mod report;
 pub mod scale;
 pub mod stats;
@@ -200,10 +201,15 @@ struct Extras<'a> {
     keep_fps: bool,
     fps: &'a mut Vec<FpsCurve>,
     calibration: &'a mut Vec<calibrate::Calibration>,
+    /// Keep every realised plan's held-out renders under this folder and
+    /// write each device's strip of one view into the second (`None`: no
+    /// pictures, e.g. a composite, which has no whole-scene view).
+    renders: Option<(PathBuf, &'a Path)>,
 }
 
-/// A plan measured once: its configurations, its method, the result.
-type Measured = (Vec<(String, u32, u32)>, Method, Realised);
+/// A plan measured once: its configurations, its method, the result and
+/// where its held-out renders went.
+type Measured = (Vec<(String, u32, u32)>, Method, Realised, Option<PathBuf>);
 
 /// A plan (or why there is none) and the devices it is simulated on.
 type DevicePlans<'d> = Vec<(
@@ -224,8 +230,11 @@ fn evaluate_scene(
         keep_fps,
         fps: fps_out,
         calibration: calib_out,
+        renders,
     } = extras;
     let mut rows: Vec<Row> = Vec::new();
+    // (device, method, render folder of its realised plan) for the strips.
+    let mut pictured: Vec<(String, Method, Option<PathBuf>)> = Vec::new();
     // Realised plans already measured, by their configurations (a plan the
     // same on both devices is rendered and measured once).
     let mut measured: Vec<Measured> = Vec::new();
@@ -292,20 +301,25 @@ fn evaluate_scene(
                     .iter()
                     .map(|o| (o.name.clone(), o.g, o.p))
                     .collect();
-                let idx = match measured.iter().position(|(k, m, _)| {
+                let idx = match measured.iter().position(|(k, m, _, _)| {
                     *k == key && (*m == method || !is_baseline(*m) && !is_baseline(method))
                 }) {
                     Some(i) => i,
                     None => {
-                        let r = realise(prepared, &plan, opts, lpips, progress)?;
-                        measured.push((key, method, r));
+                        let mut o = opts.clone();
+                        o.renders = renders.as_ref().map(|(root, _)| {
+                            let names: Vec<&str> = devs.iter().map(|d| d.name.as_str()).collect();
+                            renders::plan_dir(root, measured.len(), method, &names)
+                        });
+                        let r = realise(prepared, &plan, &o, lpips, progress)?;
+                        measured.push((key, method, r, o.renders));
                         measured.len() - 1
                     }
                 };
                 // A planner's plan is per device: if it baked over that
                 // device's budget, plan again against less (see next_budget).
                 let over = match (devs.as_slice(), measured.get(idx)) {
-                    ([d], Some((_, _, r))) if is_planner(method) && replans < MAX_REPLANS => {
+                    ([d], Some((_, _, r, _))) if is_planner(method) && replans < MAX_REPLANS => {
                         next_budget(d.budget(), Bytes(plan.budget_bytes), Bytes(r.file_bytes()))
                             .map(|b| (*d, b))
                     }
@@ -318,6 +332,9 @@ fn evaluate_scene(
                 replans += 1;
             };
             let realised = &measured[idx].2;
+            for d in &devs {
+                pictured.push((d.name.clone(), method, measured[idx].3.clone()));
+            }
             let devices_owned: Vec<Device> = devs.iter().map(|d| (*d).clone()).collect();
             progress.stage(
                 &format!("simulating {} {method}", prepared.label),
@@ -361,6 +378,34 @@ fn evaluate_scene(
                     realised,
                     sim,
                 ));
+            }
+        }
+    }
+    if let (Some((_, out)), Some(capture)) = (&renders, &prepared.capture) {
+        if let Some(truth) = capture.test.get(renders::VIEW) {
+            for d in devices {
+                let entries: Vec<renders::Entry> = pictured
+                    .iter()
+                    .filter(|(dev, _, _)| *dev == d.name)
+                    .filter_map(|(_, m, dir)| {
+                        let row = rows.iter().find(|r| r.device == d.name && r.method == *m)?;
+                        Some(renders::Entry {
+                            method: *m,
+                            dir: dir.clone()?,
+                            scores: row.views.iter().find(|v| v.view == renders::VIEW).cloned(),
+                            megabytes: row.file_bytes as f64 / 1e6,
+                        })
+                    })
+                    .collect();
+                if entries.is_empty() {
+                    continue;
+                }
+                let path = out.join(renders::strip_name(&prepared.label, &d.name));
+                // A picture is not a measurement: a failure to draw it is
+                // reported, not allowed to end a run of hours.
+                if let Err(e) = renders::write_strip(&truth.image, &entries, &path) {
+                    eprintln!("warning: {e:#}");
+                }
             }
         }
     }
@@ -443,6 +488,7 @@ pub fn run(
                 keep_fps: p == opts.fps_scene,
                 fps: &mut fps,
                 calibration: &mut calibration,
+                renders: Some((dir.join("renders"), out)),
             },
         )?);
     }
@@ -474,6 +520,7 @@ pub fn run(
                 keep_fps: false,
                 fps: &mut sink_fps,
                 calibration: &mut sink_cal,
+                renders: None,
             },
         )?)
     };
@@ -596,7 +643,8 @@ pub fn write(report: &EvalReport, out: &Path) -> anyhow::Result<()> {
 
 /// Writes `report.md` and the plots only (`nerflex eval --redraw`).
 pub fn write_report(report: &EvalReport, out: &Path) -> anyhow::Result<()> {
-    let pictures = plots::draw(report, out)?;
+    let mut pictures = plots::draw(report, out)?;
+    pictures.extend(renders::listed(out));
     write_text(&out.join("report.md"), &report::markdown(report, &pictures))?;
     Ok(())
 }

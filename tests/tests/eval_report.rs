@@ -115,9 +115,19 @@ fn tiny_evaluation() {
         "selectors_pixel4.png",
         "fps_iphone13.png",
         "overhead.png",
+        // One held-out view: the truth beside every method's render.
+        "renders_scene3_iphone13.png",
+        "renders_scene3_pixel4.png",
     ] {
         assert!(out.join(f).is_file(), "{f}");
         assert!(md.contains(f), "{f}");
     }
     assert!(md.contains("| scene3 |") || md.contains("### scene3"));
+    // Every realised plan's held-out renders are kept in the work folder.
+    let kept = std::fs::read_dir(out.join("scenes/scene3/renders"))
+        .unwrap()
+        .filter_map(Result::ok)
+        .filter(|e| e.path().join("test_1.png").is_file())
+        .count();
+    assert!(kept >= 3, "{kept} render folders");
 }
