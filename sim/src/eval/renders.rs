@@ -36,9 +36,12 @@ pub struct Entry {
 /// The folder a realised plan's held-out renders go to: numbered by the
 /// order plans are realised (a re-plan never overwrites an earlier plan's).
 pub fn plan_dir(root: &Path, index: usize, method: Method, devices: &[&str]) -> PathBuf {
-    let slug = method_label(method)
-        .to_lowercase()
-        .replace(|c: char| !c.is_ascii_alphanumeric(), "-");
+    let lower = method_label(method).to_lowercase();
+    let slug = lower
+        .split(|c: char| !c.is_ascii_alphanumeric())
+        .filter(|w| !w.is_empty())
+        .collect::<Vec<_>>()
+        .join("-");
     root.join(format!("{index:02}-{slug}-{}", devices.join("+")))
 }
 
@@ -165,6 +168,12 @@ mod tests {
         // Two tiles of 40 px (the truth and the one render present).
         assert_eq!(s.width(), 8 + 40 + 8 + 40 + 8);
         assert_eq!(listed(dir.path()).len(), 1);
+    }
+
+    #[test]
+    fn plan_folders_are_numbered_and_readable() {
+        let d = plan_dir(Path::new("r"), 3, Method::Dp, &["iphone13", "pixel4"]);
+        assert_eq!(d, Path::new("r/03-nerflex-dp-iphone13+pixel4"));
     }
 
     #[test]
