@@ -118,10 +118,11 @@ pub fn listed(out: &Path) -> Vec<(String, String)> {
         .into_iter()
         .map(|f| {
             let stem = f.trim_start_matches("renders_").trim_end_matches(".png");
+            // Device names carry no '_'; scene names may.
+            let (scene, device) = stem.rsplit_once('_').unwrap_or((stem, "?"));
             let caption = format!(
-                "held-out view {VIEW} of {} (scene_device): the ground truth, then each \
-                 method's render with its SSIM and PSNR on this view and its baked MB",
-                stem
+                "{scene}, {device} plans, held-out view {VIEW}: the ground truth, then each \
+                 method's render with its SSIM and PSNR on this view and its baked MB"
             );
             (f, caption)
         })
