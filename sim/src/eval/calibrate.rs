@@ -37,6 +37,18 @@ pub struct Calibration {
     pub fps_at_scale: f64,
 }
 
+/// How far from 1 the factor may be for the device file to count as
+/// calibrated (1 %: the bisection's own tolerance is far below).
+pub const MATCHED: f64 = 0.01;
+
+impl Calibration {
+    /// Whether the device file already makes this cell match the paper
+    /// (the factor that would match is 1 within [`MATCHED`]).
+    pub fn matched(&self) -> bool {
+        (self.scale - 1.0).abs() <= MATCHED
+    }
+}
+
 /// Finds the throughput scale that makes the mean FPS of `realised` on
 /// `device` equal `target_fps` (bisection on a log scale; the mean FPS does
 /// not decrease as throughputs grow).

@@ -16,17 +16,28 @@ fn opt(v: Option<f64>, digits: usize) -> String {
     v.map_or("–".into(), |x| format!("{x:.digits$}"))
 }
 
-/// Whether a row is the calibration cell (its FPS matches the paper by
-/// construction).
-fn calibrated(r: &EvalReport, row: &Row) -> bool {
-    row.method == Method::Dp
-        && r.calibration
-            .iter()
-            .any(|c| c.device == row.device && c.against == format!("{} dp", row.scene))
+/// The calibration check of a row, if it is the calibration cell (its FPS
+/// matches the paper by construction once the device file is calibrated).
+fn calibrated<'a>(r: &'a EvalReport, row: &Row) -> Option<&'a super::calibrate::Calibration> {
+    if row.method != Method::Dp {
+        return None;
+    }
+    r.calibration
+        .iter()
+        .find(|c| c.device == row.device && c.against == format!("{} dp", row.scene))
 }
 
-fn fps_cell(r: &Row, calibrated: bool) -> String {
-    let tag = if calibrated { " (calibrated)" } else { "" };
+fn fps_cell(r: &Row, calibration: Option<&super::calibrate::Calibration>) -> String {
+    let tag = match calibration {
+        Some(c) if c.matched() => " (calibrated)".to_string(),
+        // The calibration cell, but the device file no longer matches it
+        // (the bakes changed since it was calibrated): say so, not "calibrated".
+        Some(c) => format!(
+            " (calibration cell; the device file is off: ×{:.3} would match)",
+            c.scale
+        ),
+        None => String::new(),
+    };
     if r.error.is_some() {
         "no plan".into()
     } else if r.load_failure.is_some() {

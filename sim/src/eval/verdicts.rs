@@ -328,7 +328,6 @@ fn complex_get_more(r: &EvalReport) -> Verdict {
 fn fps_targets(r: &EvalReport) -> Verdict {
     let (mut ok, mut cells) = (0, 0);
     let mut notes = Vec::new();
-    let calibrated: Vec<&str> = r.calibration.iter().map(|c| c.against.as_str()).collect();
     for s in &r.scenes {
         for (d, target) in CALIBRATION_TARGETS {
             let Some(dp) = s
@@ -339,14 +338,23 @@ fn fps_targets(r: &EvalReport) -> Verdict {
                 continue;
             };
             // The calibration scene matches by construction: circular.
-            if calibrated
+            let check = r
+                .calibration
                 .iter()
-                .any(|c| c.starts_with(&format!("{} ", s.scene)))
-            {
-                notes.push(format!(
-                    "{} {d} {:.1} (calibrated to {target}: not evidence)",
-                    s.scene, dp.mean_fps
-                ));
+                .find(|c| c.device == d && c.against.starts_with(&format!("{} ", s.scene)));
+            if let Some(c) = check {
+                notes.push(if c.matched() {
+                    format!(
+                        "{} {d} {:.1} (calibrated to {target}: not evidence)",
+                        s.scene, dp.mean_fps
+                    )
+                } else {
+                    format!(
+                        "{} {d} {:.1} (the calibration cell, not evidence; the device file is \
+                         off: ×{:.3} on its throughputs would match {target})",
+                        s.scene, dp.mean_fps, c.scale
+                    )
+                });
                 continue;
             }
             cells += 1;
@@ -490,7 +498,14 @@ mod tests {
         });
         let v = &verdicts(&r)[5];
         assert_eq!(v.outcome, Outcome::NotSignificant, "{}", v.line());
-        assert!(v.detail.contains("not evidence"));
+        assert!(v.detail.contains("calibrated to 25: not evidence"));
+        // A device file that no longer matches the cell is not called
+        // calibrated: the factor that would match is named.
+        r.calibration[0].scale = 0.52;
+        let v = &verdicts(&r)[5];
+        assert_eq!(v.outcome, Outcome::NotSignificant, "{}", v.line());
+        assert!(!v.detail.contains("calibrated to"), "{}", v.detail);
+        assert!(v.detail.contains("×0.520"), "{}", v.detail);
         r.calibration.clear();
         assert_eq!(verdicts(&r)[5].outcome, Outcome::Confirmed);
         r.scenes[0].rows[0].mean_fps = 12.0;
