@@ -10,11 +10,13 @@
 //!   training settings), for the trained baker;
 //! - [`stages`]: the stages as functions;
 //! - [`one`]: one method on one device (`nerflex run`) and its report;
+//! - [`range`]: the profiler's dynamic range against its views' noise;
 //! - [`views`]: per-view scores of a rendered scene, whole and per object.
 
 pub mod bakes;
 pub mod fields;
 pub mod one;
+pub mod range;
 pub mod stages;
 pub mod views;
 

@@ -133,7 +133,16 @@ fn tiny_scene_end_to_end() {
         scene_json: prepared.scene_json.clone(),
         baker: opts.baker.name().to_string(),
         times: pipeline::RunTimes::default(),
+        ranges: pipeline::range::ranges(&again.samples),
     };
+    // Stored bakes keep each held-out view's scores, so a re-run can
+    // still compare its sample bakes with their noise.
+    assert!(!run.ranges.is_empty());
+    assert!(
+        run.ranges.iter().all(|r| r.ssim.is_some()),
+        "{:?}",
+        run.ranges
+    );
     run.write(&out).unwrap();
     let device_file = dir.path().join("dev.toml");
     std::fs::write(&device_file, toml_of(&device)).unwrap();

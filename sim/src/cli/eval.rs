@@ -36,7 +36,7 @@ pub struct Args {
     #[arg(long)]
     pub real_size: Option<u32>,
     /// Sizes: paper (800 × 800, 50 + 12 views), quick (128 × 128, 16 + 10
-    /// views, 1000 frames) or reduced (160 × 160, 16 + 4 views); flags
+    /// views, 1000 frames) or reduced (160 × 160, 16 + 10 views); flags
     /// given explicitly win.
     #[arg(long, value_enum, default_value_t = Scale::Paper)]
     pub scale: Scale,

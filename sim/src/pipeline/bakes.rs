@@ -9,7 +9,10 @@
 //! (the measured sample), written into `ROOT/.<key>.partial/` and renamed
 //! when complete, so an interrupted bake is never mistaken for a finished one.
 //! A trained bake also keeps `bake.json` (the trained baker's counts and
-//! stage times).
+//! stage times). Entries written since session 9 also keep `views.json`,
+//! each held-out view's SSIM and PSNR, so a run can tell a difference
+//! between two sample bakes from the scatter of its views
+//! ([`super::range`]).
 //!
 //! Two bakers ([`Baker`]): the visual hull ([`crate::bake::bake`]) and the
 //! trained baker ([`crate::bake::trained::bake`]) from a radiance field
@@ -31,6 +34,9 @@ use anyhow::Context as _;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
+
+/// Each held-out view's scores in a store entry ([`HeldOutScores`]).
+const VIEWS_FILE: &str = "views.json";
 
 /// Hull bakes at once by default (this machine has two cores).
 pub const DEFAULT_HULL_JOBS: usize = 2;
@@ -91,6 +97,18 @@ pub struct Baked {
     pub train_s: f64,
     /// Whether its field was trained by this request.
     pub field_trained: bool,
+    /// Each held-out view's scores, in the views' order (`None` for an
+    /// entry stored before they were kept).
+    pub views: Option<HeldOutScores>,
+}
+
+/// Each held-out view's SSIM and PSNR of one bake (`views.json`).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct HeldOutScores {
+    /// SSIM per view.
+    pub ssim: Vec<f64>,
+    /// PSNR per view, dB (capped at 100).
+    pub psnr: Vec<f64>,
 }
 
 impl Baked {
@@ -369,6 +387,9 @@ impl BakeStore {
             .ok()
             .and_then(|t| serde_json::from_str::<Sample>(&t).ok())
         {
+            let views = std::fs::read_to_string(dir.join(VIEWS_FILE))
+                .ok()
+                .and_then(|t| serde_json::from_str::<HeldOutScores>(&t).ok());
             return Ok(Baked {
                 sample,
                 dir: dir.join("asset"),
@@ -376,6 +397,7 @@ impl BakeStore {
                 cached: true,
                 train_s: 0.0,
                 field_trained: false,
+                views,
             });
         }
         let t0 = Instant::now();
@@ -408,9 +430,10 @@ impl BakeStore {
                 (tb.baked, Some(details), field_s, field.trained_now)
             }
         };
-        let sample = self.write_and_measure(obj, baked, &dir, details, lpips)?;
+        let (sample, views) = self.write_and_measure(obj, baked, &dir, details, lpips)?;
         Ok(Baked {
             sample,
+            views: Some(views),
             dir: dir.join("asset"),
             // Loading a stored field counts as baking; training does not.
             seconds: (t0.elapsed().as_secs_f64() - field_s.0).max(0.0),
@@ -428,7 +451,7 @@ impl BakeStore {
         dir: &Path,
         details: Option<serde_json::Value>,
         lpips: Option<&Lpips>,
-    ) -> anyhow::Result<Sample> {
+    ) -> anyhow::Result<(Sample, HeldOutScores)> {
         let (g, p) = (baked.params.grid, baked.params.patch);
         let (quads, gpu_bytes) = (baked.quads.len() as u64, baked.gpu_bytes());
         let asset = baked.into_asset()?;
@@ -439,10 +462,14 @@ impl BakeStore {
         let size_bytes = asset
             .write(&tmp.join("asset"))
             .with_context(|| format!("writing {}", tmp.display()))?;
-        let q = obj
+        let m = obj
             .measure(&asset, &sweep::fixed_point_render, lpips, false)
-            .map(|m| m.mean)
             .with_context(|| format!("measuring {} at g={g} p={p}", obj.name))?;
+        let q = m.mean;
+        let views = HeldOutScores {
+            ssim: m.views.iter().map(|v| v.ssim).collect(),
+            psnr: m.views.iter().map(|v| v.psnr).collect(),
+        };
         let sample = Sample {
             object: obj.name.clone(),
             g,
@@ -459,15 +486,17 @@ impl BakeStore {
             serde_json::to_string_pretty(&sample)?,
         )
         .with_context(|| format!("{}: cannot write", tmp.display()))?;
+        std::fs::write(tmp.join(VIEWS_FILE), serde_json::to_string(&views)?)
+            .with_context(|| format!("{}: cannot write", tmp.display()))?;
         if let Some(d) = details {
             std::fs::write(tmp.join("bake.json"), serde_json::to_string_pretty(&d)?)
                 .with_context(|| format!("{}: cannot write", tmp.display()))?;
         }
         stage.commit(
-            &|n| n == "asset" || n == "sample.json" || n == "bake.json",
-            "a bake store entry holds only asset/, sample.json and bake.json",
+            &|n| n == "asset" || n == "sample.json" || n == "bake.json" || n == VIEWS_FILE,
+            "a bake store entry holds only asset/, sample.json, views.json and bake.json",
         )?;
-        Ok(sample)
+        Ok((sample, views))
     }
 }
 

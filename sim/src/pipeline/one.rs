@@ -46,6 +46,8 @@ pub struct RunResult {
     pub baker: String,
     /// Where the time went.
     pub times: RunTimes,
+    /// Each network's quality range against its views' noise.
+    pub ranges: Vec<super::range::NetworkRange>,
 }
 
 /// Wall-clock seconds of a run's parts (what `nerflex run` prints).
@@ -144,6 +146,7 @@ pub fn run_one(
         scene_json: prepared.scene_json.clone(),
         baker: opts.baker.name().to_string(),
         times,
+        ranges: super::range::ranges(&prepared.samples),
     })
 }
 
@@ -210,6 +213,7 @@ struct ReportJson<'a> {
     mean_fps: f64,
     steady_fps: f64,
     loaded_at_s: Option<f64>,
+    profiler_ranges: &'a [super::range::NetworkRange],
 }
 
 #[derive(Serialize)]
@@ -244,6 +248,7 @@ impl RunResult {
             self.timings.sample_bakes_s,
             self.timings.profile_s
         );
+        s.push_str(&super::range::lines(&self.ranges));
         let predicted: u64 = self
             .realised
             .objects
@@ -376,6 +381,7 @@ impl RunResult {
             mean_fps: self.simulation.mean_fps,
             steady_fps: self.simulation.steady_fps,
             loaded_at_s: self.simulation.loaded_at_s,
+            profiler_ranges: &self.ranges,
         };
         write_text(
             &out.join("report.json"),
