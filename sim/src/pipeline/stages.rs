@@ -93,9 +93,9 @@ pub struct Options {
 impl Options {
     /// The reduced defaults: 160 × 160 captures with 16 training and 4
     /// held-out views (the test suite's budget; `nerflex run` takes 10 from
-    /// [`crate::eval::scale::Scale::Reduced`]); sample points g ∈ {16, 48, 144} × p ∈ {3, 10, 17};
-    /// planning over g ∈ {16, 24, 32, 48, 64, 96, 128, 144} ×
-    /// p ∈ {3, 5, 7, 9, 11, 13, 15, 17} (64 configurations per object).
+    /// [`crate::eval::scale::Scale::Reduced`]); sample points g ∈ {16, 32, 64} × p ∈ {3, 10, 17};
+    /// planning over g ∈ {16, 24, 32, 48, 64} ×
+    /// p ∈ {3, 5, 7, 9, 11, 13, 15, 17} (40 configurations per object).
     pub fn reduced(store: PathBuf) -> Options {
         Options {
             size: 160,
