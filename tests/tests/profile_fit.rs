@@ -332,6 +332,10 @@ fn accuracy_command_prints_table_and_draws() {
     assert_eq!(json["paper"]["ssim"]["mean"], 0.0065);
     assert!(text.contains("NeRFlex paper"), "{text}");
     assert!(text.contains("0.0065 ± 0.0088"), "{text}");
+    // Errors relative to each curve's spread (a flat curve cannot look accurate).
+    assert!(text.contains("SSIM/spread (%)"), "{text}");
+    let rel = json["all"]["ssim_rel_spread"]["mean"].as_f64().unwrap();
+    assert!(rel > 0.0 && rel.is_finite(), "{rel}");
     for name in ["alpha_ssim.png", "alpha_size.png", "gamma___q__size.png"] {
         let img = nerflex_sim::metrics::read_png(&plots.join(name)).unwrap();
         assert!(img.width() >= 400, "{name}");

@@ -20,6 +20,11 @@
 //! [`Accuracy::restricted`] summarises a subset of the held-out points (for
 //! example those whose measured size is in the paper's regime) without
 //! changing the fits.
+//!
+//! An SSIM error means little without the curve it sits on: a flat curve
+//! is predicted to within its own flatness by any fit. So every error is
+//! also given relative to its object's **spread**, the largest minus the
+//! smallest measured SSIM over all its samples ([`LooPoint::ssim_error_rel`]).
 
 use super::curve::{Domain, FamilyChoice};
 use super::object::{self, fit_object, ObjectFit};
@@ -98,12 +103,21 @@ pub struct LooPoint {
     pub size_family: Family,
     /// Family chosen for quality without this sample.
     pub quality_family: Family,
+    /// The object's SSIM spread: largest minus smallest measured SSIM over
+    /// all its samples (held out or not).
+    pub ssim_spread: f64,
 }
 
 impl LooPoint {
     /// `|predicted − measured|` SSIM.
     pub fn ssim_error(&self) -> f64 {
         (self.ssim_predicted - self.ssim_measured).abs()
+    }
+
+    /// `|predicted − measured|` SSIM as a fraction of the object's spread
+    /// (`None` for an object whose samples all measured the same).
+    pub fn ssim_error_rel(&self) -> Option<f64> {
+        (self.ssim_spread > 0.0).then(|| self.ssim_error() / self.ssim_spread)
     }
 
     /// `|predicted − measured|` size in MB.
@@ -123,6 +137,8 @@ impl LooPoint {
 pub struct ErrorSummary {
     /// SSIM error.
     pub ssim: Stats,
+    /// SSIM error as a fraction of the object's SSIM spread.
+    pub ssim_rel: Stats,
     /// Size error in MB.
     pub size_mb: Stats,
     /// Size error relative to the measured size.
@@ -134,6 +150,12 @@ impl ErrorSummary {
     pub fn of<'a>(points: impl IntoIterator<Item = &'a LooPoint> + Clone) -> ErrorSummary {
         ErrorSummary {
             ssim: Stats::of(points.clone().into_iter().map(LooPoint::ssim_error)),
+            ssim_rel: Stats::of(
+                points
+                    .clone()
+                    .into_iter()
+                    .filter_map(LooPoint::ssim_error_rel),
+            ),
             size_mb: Stats::of(points.clone().into_iter().map(LooPoint::size_error_mb)),
             size_rel: Stats::of(points.into_iter().map(LooPoint::size_error_rel)),
         }
@@ -293,9 +315,10 @@ pub fn train_subset(
                 .partition(|s| grids.contains(&s.g) && patches.contains(&s.p));
             let (size_pts, _) = object::points(&all);
             let fit = fit_object(name, &train, Domain::of_points(&size_pts), choice)?;
+            let spread = ssim_spread(&all);
             let points = test
                 .iter()
-                .map(|s| predict(name, &fit, s))
+                .map(|s| predict(name, &fit, s, spread))
                 .collect::<Result<Vec<_>, _>>()?;
             Ok((fit, train.len(), points))
         })
@@ -309,8 +332,27 @@ pub fn train_subset(
     ))
 }
 
+/// Largest minus smallest measured SSIM of `samples` (0 for none).
+fn ssim_spread(samples: &[&Sample]) -> f64 {
+    let (lo, hi) = samples
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), s| {
+            (lo.min(s.ssim), hi.max(s.ssim))
+        });
+    if hi >= lo {
+        hi - lo
+    } else {
+        0.0
+    }
+}
+
 /// The fixed-point prediction of `fit` at `left`'s configuration.
-fn predict(name: &str, fit: &ObjectFit, left: &Sample) -> Result<LooPoint, FitError> {
+fn predict(
+    name: &str,
+    fit: &ObjectFit,
+    left: &Sample,
+    ssim_spread: f64,
+) -> Result<LooPoint, FitError> {
     let config = fit
         .profile()?
         .config(left.g, left.p)
@@ -328,6 +370,7 @@ fn predict(name: &str, fit: &ObjectFit, left: &Sample) -> Result<LooPoint, FitEr
         ssim_predicted: config.quality.to_f64(),
         size_family: fit.size.best.params.family,
         quality_family: fit.quality.best.params.family,
+        ssim_spread,
     })
 }
 
@@ -339,6 +382,7 @@ fn object_loo(
     let (size_pts, _) = object::points(samples);
     let domain = Domain::of_points(&size_pts);
     let full = fit_object(name, samples, domain, choice)?;
+    let spread = ssim_spread(samples);
     let points = (0..samples.len())
         .into_par_iter()
         .map(|i| {
@@ -350,7 +394,7 @@ fn object_loo(
                 .map(|(_, s)| *s)
                 .collect();
             let fit = fit_object(name, &rest, domain, choice)?;
-            predict(name, &fit, left)
+            predict(name, &fit, left, spread)
         })
         .collect::<Result<Vec<_>, FitError>>()?;
     Ok((full, samples.len().saturating_sub(1), points))
@@ -375,8 +419,15 @@ pub fn table(acc: &Accuracy) -> String {
     }
     let _ = writeln!(
         out,
-        "{:<16} {:>5} {:>4}  {:>19}  {:>19}  {:>15}  {:<16}",
-        "object", "train", "n", "SSIM", "size (MB)", "size (%)", "family size/SSIM"
+        "{:<16} {:>5} {:>4}  {:>19}  {:>15}  {:>19}  {:>15}  {:<16}",
+        "object",
+        "train",
+        "n",
+        "SSIM",
+        "SSIM/spread (%)",
+        "size (MB)",
+        "size (%)",
+        "family size/SSIM"
     );
     let row = |out: &mut String, name: &str, train: &str, e: &ErrorSummary, fam: &str| {
         if e.ssim.n == 0 {
@@ -385,12 +436,14 @@ pub fn table(acc: &Accuracy) -> String {
         }
         let _ = writeln!(
             out,
-            "{:<16} {:>5} {:>4}  {:>8.4} ± {:<8.4}  {:>8.3} ± {:<8.3}  {:>6.2} ± {:<6.2}  {:<16}",
+            "{:<16} {:>5} {:>4}  {:>8.4} ± {:<8.4}  {:>6.1} ± {:<6.1}  {:>8.3} ± {:<8.3}  {:>6.2} ± {:<6.2}  {:<16}",
             name,
             train,
             e.ssim.n,
             e.ssim.mean,
             e.ssim.sd,
+            100.0 * e.ssim_rel.mean,
+            100.0 * e.ssim_rel.sd,
             e.size_mb.mean,
             e.size_mb.sd,
             100.0 * e.size_rel.mean,
@@ -414,12 +467,13 @@ pub fn table(acc: &Accuracy) -> String {
     row(&mut out, "all", "", &acc.all, "");
     let _ = writeln!(
         out,
-        "{:<16} {:>5} {:>4}  {:>8.4} ± {:<8.4}  {:>8.3} ± {:<8.3}  {:>15}  (4 objects, MobileNeRF)",
+        "{:<16} {:>5} {:>4}  {:>8.4} ± {:<8.4}  {:>15}  {:>8.3} ± {:<8.3}  {:>15}  (4 objects, MobileNeRF)",
         "NeRFlex paper",
         "",
         PAPER_SSIM.n,
         PAPER_SSIM.mean,
         PAPER_SSIM.sd,
+        "-",
         PAPER_SIZE_MB.mean,
         PAPER_SIZE_MB.sd,
         "-"
@@ -432,7 +486,7 @@ pub fn table(acc: &Accuracy) -> String {
 pub fn to_json(acc: &Accuracy) -> serde_json::Value {
     use serde_json::json;
     let stats = |s: &Stats| json!({"mean": s.mean, "sd": s.sd, "n": s.n});
-    let summary = |e: &ErrorSummary| json!({"ssim": stats(&e.ssim), "size_mb": stats(&e.size_mb), "size_rel": stats(&e.size_rel)});
+    let summary = |e: &ErrorSummary| json!({"ssim": stats(&e.ssim), "ssim_rel_spread": stats(&e.ssim_rel), "size_mb": stats(&e.size_mb), "size_rel": stats(&e.size_rel)});
     let training = match &acc.training {
         Training::LeaveOneOut => json!("leave-one-out"),
         Training::Subset { grids, patches } => json!({"grids": grids, "patches": patches}),
@@ -457,6 +511,7 @@ pub fn to_json(acc: &Accuracy) -> serde_json::Value {
             "size_predicted_bytes": p.size_predicted.0,
             "ssim_measured": p.ssim_measured,
             "ssim_predicted": p.ssim_predicted,
+            "ssim_spread": p.ssim_spread,
         })).collect::<Vec<_>>(),
     })
 }
@@ -496,4 +551,57 @@ pub fn fit_table(acc: &Accuracy) -> String {
         );
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(measured: f64, predicted: f64, spread: f64) -> LooPoint {
+        LooPoint {
+            object: "o".into(),
+            g: 16,
+            p: 3,
+            size_measured: Bytes(1),
+            size_predicted: Bytes(1),
+            ssim_measured: measured,
+            ssim_predicted: predicted,
+            size_family: Family::Surface,
+            quality_family: Family::Surface,
+            ssim_spread: spread,
+        }
+    }
+
+    #[test]
+    fn a_flat_curve_cannot_look_accurate() {
+        // The same absolute error on a flat and on a steep curve.
+        let flat = point(0.90, 0.902, 0.004);
+        let steep = point(0.90, 0.902, 0.100);
+        assert!((flat.ssim_error_rel().unwrap() - 0.5).abs() < 1e-9);
+        assert!((steep.ssim_error_rel().unwrap() - 0.02).abs() < 1e-9);
+        assert_eq!(point(0.9, 0.9, 0.0).ssim_error_rel(), None);
+        let e = ErrorSummary::of(&[flat, steep]);
+        assert!((e.ssim_rel.mean - 0.26).abs() < 1e-9);
+        assert_eq!(e.ssim_rel.n, 2);
+    }
+
+    #[test]
+    fn the_spread_is_over_every_sample() {
+        let s = |ssim: f64| Sample {
+            object: "o".into(),
+            g: 16,
+            p: 3,
+            size: Bytes(1),
+            gpu: None,
+            quads: None,
+            ssim,
+            psnr: None,
+            lpips: None,
+            line: 0,
+        };
+        let v = [s(0.7), s(0.95), s(0.8)];
+        let r: Vec<&Sample> = v.iter().collect();
+        assert!((ssim_spread(&r) - 0.25).abs() < 1e-12);
+        assert_eq!(ssim_spread(&[]), 0.0);
+    }
 }
