@@ -379,26 +379,23 @@ mod tests {
         assert_eq!(o.baker.name(), "trained");
         let o = options(&["--baker", "hull"]).unwrap();
         assert_eq!(o.baker, Baker::Hull);
+        let at = |scale: Scale, flags: &[&str]| {
+            let cli =
+                Cli::try_parse_from(std::iter::once("x").chain(flags.iter().copied())).unwrap();
+            cli.pipeline
+                .options_at(Path::new("OUT"), scale)
+                .unwrap()
+                .baker
+        };
         // The paper scale bakes trained assets unless told otherwise.
-        let paper = |flags: &[&str]| {
-            let cli =
-                Cli::try_parse_from(std::iter::once("x").chain(flags.iter().copied())).unwrap();
-            cli.pipeline
-                .options_at(Path::new("OUT"), Scale::Paper)
-                .unwrap()
-        };
-        assert_eq!(paper(&[]).baker, Scale::Paper.baker());
-        assert_eq!(paper(&["--baker", "hull"]).baker, Baker::Hull);
+        assert_eq!(at(Scale::Paper, &[]), Scale::Paper.baker());
+        assert_eq!(at(Scale::Paper, &["--baker", "hull"]), Baker::Hull);
         // --quick keeps the hull: the trained baker does not fit its budget.
-        let quick = |flags: &[&str]| {
-            let cli =
-                Cli::try_parse_from(std::iter::once("x").chain(flags.iter().copied())).unwrap();
-            cli.pipeline
-                .options_at(Path::new("OUT"), Scale::Quick)
-                .unwrap()
-        };
-        assert_eq!(quick(&[]).baker, Baker::Hull);
-        assert_eq!(quick(&["--baker", "trained"]).baker, Scale::Quick.baker());
+        assert_eq!(at(Scale::Quick, &[]), Baker::Hull);
+        assert_eq!(
+            at(Scale::Quick, &["--baker", "trained"]),
+            Scale::Quick.baker()
+        );
         let o = options(&["--train-levels", "32:10,48:20", "--epochs", "0.5"]).unwrap();
         let Baker::Trained(t) = &o.baker else {
             panic!("not trained: {:?}", o.baker)
