@@ -111,6 +111,8 @@ impl Scale {
         TrainSettings {
             levels,
             batch,
+            // Measured with TV every step; keeps the stores' field keys.
+            tv_every: 1,
             ..TrainSettings::default()
         }
     }
