@@ -192,6 +192,7 @@ impl<'a> Atlas<'a> {
         self.height
     }
 
+    #[inline]
     fn offset(&self, x: u32, y: u32) -> usize {
         let x = x.min(self.width - 1) as usize; // width ≥ 1 (checked in new)
         let y = y.min(self.height - 1) as usize;
@@ -725,47 +726,58 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
         let inv_area = 1.0 / area as f32;
         let (aw, ah) = (atlas.width(), atlas.height());
         let (fw, fh) = (aw as f32, ah as f32);
+        let (d_bc, d_ca, d_ab) = ((c.y - b.y) * step, (a.y - c.y) * step, (b.y - a.y) * step);
         for py in py0..=py1 {
             let sy = py * step + half;
             let sx = px0 * step + half;
-            let mut e_bc = edge(&b, &c, sx, sy);
-            let mut e_ca = edge(&c, &a, sx, sy);
-            let mut e_ab = edge(&a, &b, sx, sy);
-            let (d_bc, d_ca, d_ab) = ((c.y - b.y) * step, (a.y - c.y) * step, (b.y - a.y) * step);
+            let (e_bc, e_ca, e_ab) = (
+                edge(&b, &c, sx, sy),
+                edge(&c, &a, sx, sy),
+                edge(&a, &b, sx, sy),
+            );
+            // The row's inside pixels, solved exactly from the integer edge
+            // functions: the same pixels the per-pixel test takes, without
+            // walking (and mispredicting on) the box's outside ones.
+            let Some((k0, k1)) = span(
+                px1 - px0,
+                [
+                    (e_bc + bias_bc, d_bc),
+                    (e_ca + bias_ca, d_ca),
+                    (e_ab + bias_ab, d_ab),
+                ],
+            ) else {
+                continue;
+            };
             let row = self.g.get_mut((py - self.y0 as i64) as usize);
             let Some(row) = row else { return };
-            for px in px0..=px1 {
-                if e_bc + bias_bc >= 0 && e_ca + bias_ca >= 0 && e_ab + bias_ab >= 0 {
-                    let (la, lb, lc) = (
-                        e_bc as f32 * inv_area,
-                        e_ca as f32 * inv_area,
-                        e_ab as f32 * inv_area,
-                    );
-                    let iw = la * a.inv_w + lb * b.inv_w + lc * c.inv_w;
-                    if let Some(g) = row.get_mut((px - self.x0 as i64) as usize) {
-                        if iw > g.inv_w {
-                            let s = (la * a.s_w + lb * b.s_w + lc * c.s_w) / iw;
-                            let t = (la * a.t_w + lb * b.t_w + lc * c.t_w) / iw;
-                            let tx = texel_index(s * fw, aw);
-                            let ty = texel_index(t * fh, ah);
-                            if atlas.feat0_r(tx, ty) == 0 {
-                                self.stats.discarded = self.stats.discarded.saturating_add(1);
-                            } else {
-                                self.stats.fragments = self.stats.fragments.saturating_add(1);
-                                *g = GPixel {
-                                    inv_w: iw,
-                                    part: sq.part,
-                                    tx: tx as u16,
-                                    ty: ty as u16,
-                                    quad: sq.id,
-                                };
-                            }
+            for k in k0..=k1 {
+                let px = px0 + k;
+                let (la, lb, lc) = (
+                    (e_bc - k * d_bc) as f32 * inv_area,
+                    (e_ca - k * d_ca) as f32 * inv_area,
+                    (e_ab - k * d_ab) as f32 * inv_area,
+                );
+                let iw = la * a.inv_w + lb * b.inv_w + lc * c.inv_w;
+                if let Some(g) = row.get_mut((px - self.x0 as i64) as usize) {
+                    if iw > g.inv_w {
+                        let s = (la * a.s_w + lb * b.s_w + lc * c.s_w) / iw;
+                        let t = (la * a.t_w + lb * b.t_w + lc * c.t_w) / iw;
+                        let tx = texel_index(s * fw, aw);
+                        let ty = texel_index(t * fh, ah);
+                        if atlas.feat0_r(tx, ty) == 0 {
+                            self.stats.discarded = self.stats.discarded.saturating_add(1);
+                        } else {
+                            self.stats.fragments = self.stats.fragments.saturating_add(1);
+                            *g = GPixel {
+                                inv_w: iw,
+                                part: sq.part,
+                                tx: tx as u16,
+                                ty: ty as u16,
+                                quad: sq.id,
+                            };
                         }
                     }
                 }
-                e_bc -= d_bc;
-                e_ca -= d_ca;
-                e_ab -= d_ab;
             }
         }
     }
@@ -838,6 +850,36 @@ fn first_centre(v: i64) -> i64 {
 #[inline(always)]
 fn last_centre(v: i64) -> i64 {
     (v - (1 << (SUBPIXEL_BITS - 1))) >> SUBPIXEL_BITS
+}
+
+/// The steps `k0..=k1` of `0..=last` at which every `e − k·d ≥ 0` (an
+/// edge value and its decrement per pixel), or `None`: integer-exact, so it
+/// keeps the pixels a per-pixel test would. Values are bounded by the guard
+/// band (|e| < 2⁵⁸, |d| < 2³⁸), so nothing overflows.
+#[inline(always)]
+fn span(last: i64, edges: [(i64, i64); 3]) -> Option<(i64, i64)> {
+    let (mut k0, mut k1) = (0i64, last);
+    for (e, d) in edges {
+        if d > 0 {
+            // Falling: inside up to floor(e / d); skip the division when
+            // the whole run is inside.
+            if e < 0 {
+                return None;
+            }
+            if e - k1 * d < 0 {
+                k1 = e / d;
+            }
+        } else if d < 0 {
+            // Rising: inside from ceil(−e / −d).
+            if e < 0 {
+                let n = -d;
+                k0 = k0.max((-e + n - 1) / n);
+            }
+        } else if e < 0 {
+            return None;
+        }
+    }
+    (k0 <= k1).then_some((k0, k1))
 }
 
 /// Edge function of `p → q` at `(sx, sy)` (all in 1/256 px); exact.

@@ -358,3 +358,28 @@ fn the_mean_texel_rounds_and_survives_empty_input() {
     let full = ([255; 4], [255; 4]);
     assert_eq!(mean_texel(&[full, full, full, full]), full);
 }
+
+proptest::proptest! {
+    /// `span` keeps exactly the steps a per-pixel edge test keeps.
+    #[test]
+    fn span_equals_the_per_pixel_test(
+        last in 0i64..40,
+        e in proptest::array::uniform3(-(1i64 << 40)..(1i64 << 40)),
+        d in proptest::array::uniform3(-(1i64 << 38)..(1i64 << 38)),
+        small in proptest::array::uniform3(-300i64..300),
+        use_small in proptest::bool::ANY,
+    ) {
+        // Small values make edges cross inside the run; large ones test range.
+        let e = if use_small { small } else { e };
+        let d = if use_small { [small[1] / 7, small[2] / 11, small[0] / 13] } else { d };
+        let edges = [(e[0], d[0]), (e[1], d[1]), (e[2], d[2])];
+        let inside: Vec<i64> = (0..=last)
+            .filter(|&k| edges.iter().all(|&(e, d)| e - k * d >= 0))
+            .collect();
+        let got: Vec<i64> = match span(last, edges) {
+            Some((k0, k1)) => (k0..=k1).collect(),
+            None => Vec::new(),
+        };
+        proptest::prop_assert_eq!(got, inside);
+    }
+}

@@ -35,7 +35,7 @@ pub struct Args {
     #[arg(long)]
     pub renders: Option<PathBuf>,
     /// Coarse-to-fine schedule, `RES:STEPS` comma-separated.
-    #[arg(long, value_delimiter = ',', value_parser = parse_level, default_value = "128:1000,256:4500")]
+    #[arg(long, value_delimiter = ',', value_parser = parse_level, default_value = "128:1000,256:6000")]
     pub levels: Vec<Level>,
     /// Rays per optimisation step.
     #[arg(long, default_value_t = 8192)]
@@ -75,7 +75,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1e-10)]
     pub tv_color: f32,
     /// Apply the total variation every N steps (weights × N). Every 4th
-    /// step frees the time for 1000 more steps at 256³ (docs/training.md).
+    /// step frees time for more steps at 256³ (docs/training.md).
     #[arg(long, default_value_t = 4)]
     pub tv_every: u32,
     /// Every N steps, skip cells whose opacity stays below
