@@ -302,12 +302,12 @@ fn hull_bakes_two_at_a_time_are_the_bakes_one_at_a_time_in_order() {
     }
     // The repeated request is one store entry.
     assert_eq!(a[1].dir, a[3].dir);
-    // The trained baker bakes one at a time whatever the store says.
+    // The trained baker honours the store's jobs too (within a network).
     assert_eq!(
         BakeStore::with_baker(dir.path().join("t"), tiny_baker())
             .with_jobs(4)
             .jobs(),
-        1
+        4
     );
     // A bad request fails the batch with its own error.
     let mut bad = reqs.clone();
@@ -316,4 +316,50 @@ fn hull_bakes_two_at_a_time_are_the_bakes_one_at_a_time_in_order() {
         .get_or_bake_many(&bad, None, &Quiet, &label)
         .unwrap_err();
     assert!(format!("{err:#}").contains("g=0"), "{err:#}");
+}
+
+#[test]
+fn trained_bakes_of_one_network_run_together_after_one_training() {
+    let dir = tempfile::tempdir().unwrap();
+    let cap = Capture::load(capture(dir.path(), &[ObjectKind::Mug], 32, 8)).unwrap();
+    let views = ObjectViews::from_capture(&cap, None).unwrap();
+    let configs = [(8, 3), (12, 5), (16, 5)];
+    let reqs: Vec<pipeline::BakeRequest<'_>> = configs
+        .iter()
+        .map(|&(g, p)| pipeline::BakeRequest {
+            views: &views,
+            g,
+            p,
+        })
+        .collect();
+    let label = |i: usize| format!("bake {i}");
+    let two = BakeStore::with_baker(dir.path().join("two"), tiny_baker()).with_jobs(2);
+    let one = BakeStore::with_baker(dir.path().join("one"), tiny_baker()).with_jobs(1);
+    let a = two.get_or_bake_many(&reqs, None, &Quiet, &label).unwrap();
+    let b = one.get_or_bake_many(&reqs, None, &Quiet, &label).unwrap();
+    for ((x, y), &(g, p)) in a.iter().zip(&b).zip(&configs) {
+        assert_eq!((x.sample.g, x.sample.p), (g, p));
+        assert!(!x.cached);
+        // Same geometry; the fine-tune's parallel sums may round apart.
+        assert_eq!(x.sample.quads, y.sample.quads);
+        let (sa, sb) = (x.sample.ssim, y.sample.ssim);
+        assert!((sa - sb).abs() < 0.01, "g={g} p={p}: {sa} vs {sb}");
+    }
+    // The field was trained once, and its time is counted once, on the
+    // group's first bake, as one at a time counts it.
+    let trained: Vec<bool> = a.iter().map(|b| b.field_trained).collect();
+    assert_eq!(trained, [true, false, false]);
+    assert_eq!(a.iter().filter(|b| b.train_s > 0.0).count(), 1);
+    assert_eq!(b.iter().filter(|b| b.train_s > 0.0).count(), 1);
+    let fields = std::fs::read_dir(two.fields().root())
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .is_ok_and(|e| e.path().extension().is_some_and(|x| x == "safetensors"))
+        })
+        .count();
+    assert_eq!(fields, 1);
+    // A second batch finds everything stored and trains nothing.
+    let c = two.get_or_bake_many(&reqs, None, &Quiet, &label).unwrap();
+    assert!(c.iter().all(|b| b.cached && !b.field_trained && b.train_s == 0.0));
 }

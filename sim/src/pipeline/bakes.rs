@@ -179,16 +179,13 @@ impl BakeStore {
         self
     }
 
-    /// Bakes running at once in [`BakeStore::get_or_bake_many`]: the
-    /// store's `jobs` for the hull baker; one for the trained baker, whose
-    /// bakes share a field that one of them may be training and each hold
-    /// G-buffers of every training view (one network's (128, 17) bake from
-    /// 50 views at 800 px peaked at 2.5 GB).
+    /// Bakes running at once in [`BakeStore::get_or_bake_many`] (the
+    /// store's `jobs`). The trained baker runs them at once only within one
+    /// network, after its field is trained or loaded, so no two bakes ever
+    /// train the same field; a trained bake keeps about 1.7 of two cores
+    /// busy (its measuring, encoding and gathers are partly serial).
     pub fn jobs(&self) -> usize {
-        match self.baker {
-            Baker::Hull => self.jobs,
-            Baker::Trained(_) => 1,
-        }
+        self.jobs
     }
 
     /// Every request's bake, in the order given, [`BakeStore::jobs`] at a
@@ -200,7 +197,11 @@ impl BakeStore {
     ///
     /// Why: a hull bake keeps about 1.5 of two cores busy (its encoding and
     /// measuring are partly serial); two at once took `nerflex eval --quick`
-    /// from 914 s to the figure in `docs/evaluation.md`.
+    /// from 914 s to the figure in `docs/evaluation.md`. For the trained
+    /// baker, consecutive requests on one network (the same `views`) form a
+    /// group: its field is trained or loaded first, once, then the group's
+    /// bakes run `jobs` at a time sharing it (each holds its own G-buffers:
+    /// a 50-view 800-px sample bake peaked at 2.0 GB).
     pub fn get_or_bake_many(
         &self,
         reqs: &[BakeRequest<'_>],
@@ -208,8 +209,94 @@ impl BakeStore {
         progress: &dyn Progress,
         label: &(dyn Fn(usize) -> String + Sync),
     ) -> anyhow::Result<Vec<Baked>> {
-        let jobs = self.jobs().min(reqs.len().max(1));
-        let mut order: Vec<usize> = (0..reqs.len()).collect();
+        let mut results: Vec<Option<anyhow::Result<Baked>>> =
+            (0..reqs.len()).map(|_| None).collect();
+        match self.baker {
+            Baker::Hull => {
+                let all: Vec<usize> = (0..reqs.len()).collect();
+                self.bake_group(reqs, &all, self.jobs, lpips, progress, label, &mut results);
+            }
+            Baker::Trained(_) => {
+                let mut start = 0;
+                while start < reqs.len() {
+                    let views = reqs[start].views;
+                    let len = reqs[start..]
+                        .iter()
+                        .take_while(|r| std::ptr::eq(r.views, views))
+                        .count();
+                    let group: Vec<usize> = (start..start + len).collect();
+                    let missing = group
+                        .iter()
+                        .filter(|&&i| !self.is_stored(&reqs[i], lpips.is_some()))
+                        .count();
+                    let jobs = if missing > 1 { self.jobs } else { 1 };
+                    let mut field_trained = None;
+                    if jobs > 1 {
+                        match self.field(views, progress) {
+                            Ok(f) => field_trained = f.trained_now.then_some(f.train_s),
+                            Err(e) => {
+                                results[start] = Some(Err(e));
+                                break;
+                            }
+                        }
+                    }
+                    self.bake_group(reqs, &group, jobs, lpips, progress, label, &mut results);
+                    // Training the field beforehand belongs to the group's
+                    // first bake, as it would have without the concurrency.
+                    if let (Some(train_s), Some(Some(Ok(b)))) =
+                        (field_trained, results.get_mut(start))
+                    {
+                        b.train_s += train_s;
+                        b.field_trained = true;
+                    }
+                    if group
+                        .iter()
+                        .any(|&i| matches!(results.get(i), Some(Some(Err(_)))))
+                    {
+                        break;
+                    }
+                    start += len;
+                }
+            }
+        }
+        // The first failure in request order, not a bake it kept from running.
+        if let Some(i) = results.iter().position(|b| matches!(b, Some(Err(_)))) {
+            if let Some(Some(Err(e))) = results.get_mut(i).map(Option::take) {
+                return Err(e);
+            }
+        }
+        results
+            .into_iter()
+            .enumerate()
+            .map(|(i, b)| {
+                b.unwrap_or_else(|| Err(anyhow::anyhow!("bake {} of the batch did not run", i + 1)))
+            })
+            .collect()
+    }
+
+    /// Whether the store holds `r`'s bake (measured with LPIPS or not).
+    fn is_stored(&self, r: &BakeRequest<'_>, with_lpips: bool) -> bool {
+        self.root
+            .join(self.key(r.views, r.g, r.p, with_lpips))
+            .join("sample.json")
+            .is_file()
+    }
+
+    /// Bakes the requests `group` (indices into `reqs`), `jobs` at a time,
+    /// into `results`; stops starting new ones after a failure.
+    #[allow(clippy::too_many_arguments)]
+    fn bake_group(
+        &self,
+        reqs: &[BakeRequest<'_>],
+        group: &[usize],
+        jobs: usize,
+        lpips: Option<&Lpips>,
+        progress: &dyn Progress,
+        label: &(dyn Fn(usize) -> String + Sync),
+        results: &mut [Option<anyhow::Result<Baked>>],
+    ) {
+        let jobs = jobs.clamp(1, group.len().max(1));
+        let mut order = group.to_vec();
         // One at a time keeps the given order, so consecutive bakes of one
         // network share the field kept in memory.
         if jobs > 1 {
@@ -219,8 +306,7 @@ impl BakeStore {
             });
         }
         let queue = Mutex::new(order.into_iter());
-        let results: Mutex<Vec<Option<anyhow::Result<Baked>>>> =
-            Mutex::new((0..reqs.len()).map(|_| None).collect());
+        let out: Mutex<Vec<(usize, anyhow::Result<Baked>)>> = Mutex::new(Vec::new());
         // After a failure no new bake starts (the batch fails anyway).
         let failed = std::sync::atomic::AtomicBool::new(false);
         let work = || loop {
@@ -235,10 +321,8 @@ impl BakeStore {
                 failed.store(true, std::sync::atomic::Ordering::Relaxed);
             }
             progress.step(&label(i));
-            if let Ok(mut v) = results.lock() {
-                if let Some(slot) = v.get_mut(i) {
-                    *slot = Some(b);
-                }
+            if let Ok(mut v) = out.lock() {
+                v.push((i, b));
             }
         };
         if jobs <= 1 {
@@ -250,22 +334,15 @@ impl BakeStore {
                 }
             });
         }
-        let mut results = results
-            .into_inner()
-            .map_err(|_| anyhow::anyhow!("a bake thread panicked"))?;
-        // The first failure in request order, not a bake it kept from running.
-        if let Some(i) = results.iter().position(|b| matches!(b, Some(Err(_)))) {
-            if let Some(Some(Err(e))) = results.get_mut(i).map(Option::take) {
-                return Err(e);
+        // A poisoned lock means a bake thread panicked: its slots stay
+        // empty and read as "did not run".
+        if let Ok(v) = out.into_inner() {
+            for (i, b) in v {
+                if let Some(slot) = results.get_mut(i) {
+                    *slot = Some(b);
+                }
             }
         }
-        results
-            .into_iter()
-            .enumerate()
-            .map(|(i, b)| {
-                b.unwrap_or_else(|| Err(anyhow::anyhow!("bake {} of the batch did not run", i + 1)))
-            })
-            .collect()
     }
 
     /// The folder.

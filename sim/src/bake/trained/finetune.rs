@@ -243,9 +243,16 @@ fn batch_grad(
                 mlp: MlpWeights::ZERO,
                 feats: Vec::with_capacity(chunk.len()),
             };
-            for &i in chunk {
+            // Gather first: the lattice reads are cache misses, independent
+            // across pixels, and overlap in a loop of their own instead of
+            // waiting behind each pixel's MLP.
+            let features: Vec<[f32; FEATURES]> = chunk
+                .iter()
+                .map(|&i| pixels.get(i as usize).features(taps, values))
+                .collect();
+            for (&i, f) in chunk.iter().zip(&features) {
                 let px = pixels.get(i as usize);
-                let x = net::input(&px.features(taps, values), px.dir);
+                let x = net::input(f, px.dir);
                 let a = net::forward(mlp, &x);
                 let c = px.blend(a.y);
                 let cov = px.coverage();
