@@ -362,4 +362,38 @@ fn trained_bakes_of_one_network_run_together_after_one_training() {
     // A second batch finds everything stored and trains nothing.
     let c = two.get_or_bake_many(&reqs, None, &Quiet, &label).unwrap();
     assert!(c.iter().all(|b| b.cached && !b.field_trained && b.train_s == 0.0));
+
+    // Two networks in one batch (as Block-NeRF's and the plans' bakes
+    // are): both fields trained first, each counted on its network's first
+    // missing bake, and every result answers its own request.
+    let ball_dir = dir.path().join("ball");
+    std::fs::create_dir_all(&ball_dir).unwrap();
+    let ball = Capture::load(capture(&ball_dir, &[ObjectKind::Ball], 32, 8)).unwrap();
+    let ball = ObjectViews::from_capture(&ball, None).unwrap();
+    let mixed = [
+        pipeline::BakeRequest {
+            views: &views,
+            g: 12,
+            p: 3,
+        },
+        pipeline::BakeRequest {
+            views: &ball,
+            g: 8,
+            p: 3,
+        },
+        pipeline::BakeRequest {
+            views: &ball,
+            g: 12,
+            p: 5,
+        },
+    ];
+    let d = two.get_or_bake_many(&mixed, None, &Quiet, &label).unwrap();
+    let got: Vec<(&str, u32, u32)> = d
+        .iter()
+        .map(|b| (b.sample.object.as_str(), b.sample.g, b.sample.p))
+        .collect();
+    assert_eq!(got, [("mug", 12, 3), ("ball", 8, 3), ("ball", 12, 5)]);
+    // The mug's field was already stored; the ball's was trained now.
+    let trained: Vec<bool> = d.iter().map(|b| b.field_trained).collect();
+    assert_eq!(trained, [false, true, false]);
 }

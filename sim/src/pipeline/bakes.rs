@@ -180,10 +180,10 @@ impl BakeStore {
     }
 
     /// Bakes running at once in [`BakeStore::get_or_bake_many`] (the
-    /// store's `jobs`). The trained baker runs them at once only within one
-    /// network, after its field is trained or loaded, so no two bakes ever
-    /// train the same field; a trained bake keeps about 1.7 of two cores
-    /// busy (its measuring, encoding and gathers are partly serial).
+    /// store's `jobs`). The trained baker runs them at once only after every
+    /// field they need is trained, so no two bakes ever train one field; a
+    /// trained bake keeps about 1.7 of two cores busy (its measuring,
+    /// encoding and gathers are partly serial).
     pub fn jobs(&self) -> usize {
         self.jobs
     }
@@ -197,11 +197,12 @@ impl BakeStore {
     ///
     /// Why: a hull bake keeps about 1.5 of two cores busy (its encoding and
     /// measuring are partly serial); two at once took `nerflex eval --quick`
-    /// from 914 s to the figure in `docs/evaluation.md`. For the trained
-    /// baker, consecutive requests on one network (the same `views`) form a
-    /// group: its field is trained or loaded first, once, then the group's
-    /// bakes run `jobs` at a time sharing it (each holds its own G-buffers:
-    /// a 50-view 800-px sample bake peaked at 2.0 GB).
+    /// from 914 s to the figure in `docs/evaluation.md`. The trained baker
+    /// first trains, one at a time, every field its missing bakes need,
+    /// then bakes `jobs` at a time, a network's bakes together (requests on
+    /// one network share its `views`); each bake holds its own G-buffers (a
+    /// 50-view 800-px sample bake peaked at 2.0 GB, a (128, 17) Block-NeRF
+    /// bake of the sponge about 7 GB).
     pub fn get_or_bake_many(
         &self,
         reqs: &[BakeRequest<'_>],
@@ -216,46 +217,42 @@ impl BakeStore {
                 let all: Vec<usize> = (0..reqs.len()).collect();
                 self.bake_group(reqs, &all, self.jobs, lpips, progress, label, &mut results);
             }
-            Baker::Trained(_) => {
-                let mut start = 0;
-                while start < reqs.len() {
-                    let views = reqs[start].views;
-                    let len = reqs[start..]
-                        .iter()
-                        .take_while(|r| std::ptr::eq(r.views, views))
-                        .count();
-                    let group: Vec<usize> = (start..start + len).collect();
-                    let missing = group
-                        .iter()
-                        .filter(|&&i| !self.is_stored(&reqs[i], lpips.is_some()))
-                        .count();
-                    let jobs = if missing > 1 { self.jobs } else { 1 };
-                    let mut field_trained = None;
-                    if jobs > 1 {
+            Baker::Trained(ref t) => {
+                let missing: Vec<usize> = (0..reqs.len())
+                    .filter(|&i| !self.is_stored(&reqs[i], lpips.is_some()))
+                    .collect();
+                let jobs = if missing.len() > 1 { self.jobs } else { 1 };
+                // Every field the missing bakes need, trained (or found)
+                // first, one at a time: training keeps both cores busy, and
+                // no two bakes may then train the same field.
+                let mut trained: Vec<(usize, f64)> = Vec::new();
+                if jobs > 1 {
+                    let mut seen: Vec<&ObjectViews> = Vec::new();
+                    for &i in &missing {
+                        let views = reqs[i].views;
+                        if seen.iter().any(|&v| std::ptr::eq(v, views)) {
+                            continue;
+                        }
+                        seen.push(views);
+                        if self.fields.contains(views, &t.train) {
+                            continue;
+                        }
                         match self.field(views, progress) {
-                            Ok(f) => field_trained = f.trained_now.then_some(f.train_s),
-                            Err(e) => {
-                                results[start] = Some(Err(e));
-                                break;
-                            }
+                            Ok(f) if f.trained_now => trained.push((i, f.train_s)),
+                            Ok(_) => {}
+                            Err(e) => return Err(e),
                         }
                     }
-                    self.bake_group(reqs, &group, jobs, lpips, progress, label, &mut results);
-                    // Training the field beforehand belongs to the group's
-                    // first bake, as it would have without the concurrency.
-                    if let (Some(train_s), Some(Some(Ok(b)))) =
-                        (field_trained, results.get_mut(start))
-                    {
+                }
+                let all: Vec<usize> = (0..reqs.len()).collect();
+                self.bake_group(reqs, &all, jobs, lpips, progress, label, &mut results);
+                // A field's training belongs to its network's first missing
+                // bake, as it would one at a time.
+                for (i, train_s) in trained {
+                    if let Some(Some(Ok(b))) = results.get_mut(i) {
                         b.train_s += train_s;
                         b.field_trained = true;
                     }
-                    if group
-                        .iter()
-                        .any(|&i| matches!(results.get(i), Some(Some(Err(_)))))
-                    {
-                        break;
-                    }
-                    start += len;
                 }
             }
         }
@@ -300,9 +297,24 @@ impl BakeStore {
         // One at a time keeps the given order, so consecutive bakes of one
         // network share the field kept in memory.
         if jobs > 1 {
+            // The trained baker keeps a network's bakes together, so the
+            // workers mostly share one field in memory.
+            let trained = matches!(self.baker, Baker::Trained(_));
+            let network = |i: usize| {
+                if trained {
+                    reqs.iter()
+                        .position(|r| std::ptr::eq(r.views, reqs[i].views))
+                        .unwrap_or(i)
+                } else {
+                    0
+                }
+            };
             order.sort_by_key(|&i| {
                 let r = &reqs[i];
-                std::cmp::Reverse(u64::from(r.g).pow(2) * u64::from(r.p).pow(2))
+                (
+                    network(i),
+                    std::cmp::Reverse(u64::from(r.g).pow(2) * u64::from(r.p).pow(2)),
+                )
             });
         }
         let queue = Mutex::new(order.into_iter());
