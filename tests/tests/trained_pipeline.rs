@@ -361,7 +361,9 @@ fn trained_bakes_of_one_network_run_together_after_one_training() {
     assert_eq!(fields, 1);
     // A second batch finds everything stored and trains nothing.
     let c = two.get_or_bake_many(&reqs, None, &Quiet, &label).unwrap();
-    assert!(c.iter().all(|b| b.cached && !b.field_trained && b.train_s == 0.0));
+    assert!(c
+        .iter()
+        .all(|b| b.cached && !b.field_trained && b.train_s == 0.0));
 
     // Two networks in one batch (as Block-NeRF's and the plans' bakes
     // are): both fields trained first, each counted on its network's first
