@@ -273,20 +273,21 @@ fn a_trained_evaluation_names_its_baker_and_what_it_substitutes() {
     assert!(!md.contains("visual-hull bakes (no trained field)"));
 }
 
+/// One bake request per (g, p), all on `views`.
+fn requests<'a>(views: &'a ObjectViews, configs: &[(u32, u32)]) -> Vec<pipeline::BakeRequest<'a>> {
+    configs
+        .iter()
+        .map(|&(g, p)| pipeline::BakeRequest { views, g, p })
+        .collect()
+}
+
 #[test]
 fn hull_bakes_two_at_a_time_are_the_bakes_one_at_a_time_in_order() {
     let dir = tempfile::tempdir().unwrap();
     let cap = Capture::load(capture(dir.path(), &[ObjectKind::Ball], 32, 6)).unwrap();
     let views = ObjectViews::from_capture(&cap, None).unwrap();
     let configs = [(8, 3), (16, 5), (12, 4), (16, 5)];
-    let reqs: Vec<pipeline::BakeRequest<'_>> = configs
-        .iter()
-        .map(|&(g, p)| pipeline::BakeRequest {
-            views: &views,
-            g,
-            p,
-        })
-        .collect();
+    let reqs = requests(&views, &configs);
     let label = |i: usize| format!("bake {i}");
     let two = BakeStore::new(dir.path().join("two")).with_jobs(2);
     let one = BakeStore::new(dir.path().join("one")).with_jobs(1);
@@ -324,14 +325,7 @@ fn trained_bakes_of_one_network_run_together_after_one_training() {
     let cap = Capture::load(capture(dir.path(), &[ObjectKind::Mug], 32, 8)).unwrap();
     let views = ObjectViews::from_capture(&cap, None).unwrap();
     let configs = [(8, 3), (12, 5), (16, 5)];
-    let reqs: Vec<pipeline::BakeRequest<'_>> = configs
-        .iter()
-        .map(|&(g, p)| pipeline::BakeRequest {
-            views: &views,
-            g,
-            p,
-        })
-        .collect();
+    let reqs = requests(&views, &configs);
     let label = |i: usize| format!("bake {i}");
     let two = BakeStore::with_baker(dir.path().join("two"), tiny_baker()).with_jobs(2);
     let one = BakeStore::with_baker(dir.path().join("one"), tiny_baker()).with_jobs(1);
