@@ -37,6 +37,8 @@ use std::time::Instant;
 
 /// Each held-out view's scores in a store entry ([`HeldOutScores`]).
 const VIEWS_FILE: &str = "views.json";
+/// A store entry's measured sample (its presence marks a finished entry).
+const SAMPLE_FILE: &str = "sample.json";
 
 /// Hull bakes at once by default (this machine has two cores).
 pub const DEFAULT_HULL_JOBS: usize = 2;
@@ -271,11 +273,15 @@ impl BakeStore {
             .collect()
     }
 
+    /// The store entry of the bake of `obj` at (g, p).
+    fn entry_dir(&self, obj: &ObjectViews, g: u32, p: u32, with_lpips: bool) -> PathBuf {
+        self.root.join(self.key(obj, g, p, with_lpips))
+    }
+
     /// Whether the store holds `r`'s bake (measured with LPIPS or not).
     fn is_stored(&self, r: &BakeRequest<'_>, with_lpips: bool) -> bool {
-        self.root
-            .join(self.key(r.views, r.g, r.p, with_lpips))
-            .join("sample.json")
+        self.entry_dir(r.views, r.g, r.p, with_lpips)
+            .join(SAMPLE_FILE)
             .is_file()
     }
 
@@ -469,9 +475,8 @@ impl BakeStore {
         lpips: Option<&Lpips>,
         progress: &dyn Progress,
     ) -> anyhow::Result<Baked> {
-        let key = self.key(obj, g, p, lpips.is_some());
-        let dir = self.root.join(&key);
-        let sample_path = dir.join("sample.json");
+        let dir = self.entry_dir(obj, g, p, lpips.is_some());
+        let sample_path = dir.join(SAMPLE_FILE);
         if let Some(sample) = std::fs::read_to_string(&sample_path)
             .ok()
             .and_then(|t| serde_json::from_str::<Sample>(&t).ok())
@@ -571,7 +576,7 @@ impl BakeStore {
             lpips: q.lpips,
         };
         std::fs::write(
-            tmp.join("sample.json"),
+            tmp.join(SAMPLE_FILE),
             serde_json::to_string_pretty(&sample)?,
         )
         .with_context(|| format!("{}: cannot write", tmp.display()))?;
@@ -582,7 +587,7 @@ impl BakeStore {
                 .with_context(|| format!("{}: cannot write", tmp.display()))?;
         }
         stage.commit(
-            &|n| n == "asset" || n == "sample.json" || n == "bake.json" || n == VIEWS_FILE,
+            &|n| n == "asset" || n == SAMPLE_FILE || n == "bake.json" || n == VIEWS_FILE,
             "a bake store entry holds only asset/, sample.json, views.json and bake.json",
         )?;
         Ok((sample, views))
