@@ -594,6 +594,17 @@ fn settings(opts: &EvalOptions, lpips: bool) -> Vec<(String, String)> {
         ),
         ("baker".into(), baker_words(&p.baker)),
         (
+            "segmentation crop".into(),
+            if p.crop_margin == 0.0 {
+                "the mask's box (margin 0, as the paper)".into()
+            } else {
+                format!(
+                    "the mask's box grown by {} of its larger side",
+                    p.crop_margin
+                )
+            },
+        ),
+        (
             "intervals".into(),
             format!(
                 "95 % percentile bootstrap over the held-out views, {} resamples, seed {}",

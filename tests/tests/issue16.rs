@@ -144,3 +144,49 @@ fn example_scenes_with_invented_numbers_say_so() {
         }
     }
 }
+
+/// `--crop-margin` reaches the segmentation: each dedicated network's
+/// crop grows, so its views are enlarged less (a smaller mean zoom), and
+/// its views differ, so the store keeps them apart from the tight crop's.
+#[test]
+fn a_crop_margin_widens_every_dedicated_networks_crop() {
+    use nerflex_sim::pipeline::{prepare, Input};
+    let dir = tempfile::tempdir().unwrap();
+    let run = |margin: f32| {
+        let mut p = Options::reduced(dir.path().join("bakes"));
+        p.baker = Baker::Hull;
+        p.size = 48;
+        p.train_views = 6;
+        p.test_views = 3;
+        p.configs = nerflex_tests::tiny_configs();
+        p.crop_margin = margin;
+        let out = dir.path().join(format!("m{margin}"));
+        prepare(&Input::Preset(Preset::Scene4), &p, &out, None, &Quiet).unwrap()
+    };
+    let (tight, wide) = (run(0.0), run(0.25));
+    let mut dedicated = 0;
+    for (t, w) in tight
+        .segmentation
+        .groups
+        .iter()
+        .zip(&wide.segmentation.groups)
+    {
+        assert_eq!(t.folder, w.folder);
+        if t.objects.len() == 1 && t.folder != "shared" {
+            dedicated += 1;
+            assert!(
+                w.mean_zoom < t.mean_zoom,
+                "{}: zoom {} with the margin, {} without",
+                t.folder,
+                w.mean_zoom,
+                t.mean_zoom
+            );
+        }
+    }
+    assert!(dedicated > 0, "scene 4 has no dedicated network at 48 px");
+    for (t, w) in tight.networks.iter().zip(&wide.networks) {
+        if t.name != "shared" {
+            assert_ne!(t.views.content_hash, w.views.content_hash, "{}", t.name);
+        }
+    }
+}

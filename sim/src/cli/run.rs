@@ -78,6 +78,12 @@ pub struct PipelineArgs {
     /// [default: by the scale; run: 3].
     #[arg(long)]
     pub epochs: Option<f32>,
+    /// Grow each dedicated network's crop by this fraction of its object's
+    /// larger box side before enlarging [default: 0, the paper's tight
+    /// crop]. With 0 no training ray passes just outside the object, so its
+    /// field may keep floaters there (docs/evaluation.md, "Session 10").
+    #[arg(long, value_name = "FRACTION")]
+    pub crop_margin: Option<f32>,
     /// Leave LPIPS out even when its weights are available.
     #[arg(long)]
     pub no_lpips: bool,
@@ -119,6 +125,12 @@ impl PipelineArgs {
             ..SimOptions::default()
         };
         opts.baker = self.baker_at(scale)?;
+        if let Some(m) = self.crop_margin {
+            if !(m.is_finite() && (0.0..=1.0).contains(&m)) {
+                bail!("--crop-margin: must be a fraction in 0..=1 of the object's box, got {m}");
+            }
+            opts.crop_margin = m;
+        }
         Ok(opts)
     }
 
@@ -367,6 +379,10 @@ mod tests {
         assert_eq!(o.store, Path::new("OUT").join("bakes"));
         let o = options(&["--store", "S"]).unwrap();
         assert_eq!(o.store, Path::new("S"));
+        // The paper's tight crop unless a margin is asked for.
+        assert_eq!(o.crop_margin, 0.0);
+        let o = options(&["--crop-margin", "0.1"]).unwrap();
+        assert_eq!(o.crop_margin, 0.1);
     }
 
     #[test]
@@ -438,6 +454,9 @@ mod tests {
             (&["--size", "8"][..], "--size"),
             (&["--views", "1"][..], "--views"),
             (&["--test-views", "0"][..], "--test-views"),
+            (&["--crop-margin=-0.1"][..], "--crop-margin"),
+            (&["--crop-margin", "NaN"][..], "--crop-margin"),
+            (&["--crop-margin", "2"][..], "--crop-margin"),
         ] {
             let e = options(flags).err().unwrap();
             assert!(format!("{e:#}").contains(name), "{flags:?}: {e:#}");

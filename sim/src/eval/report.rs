@@ -178,7 +178,12 @@ pub fn markdown(r: &EvalReport, pictures: &[(String, String)]) -> String {
     for (k, v) in &r.settings {
         let _ = writeln!(s, "- {k}: {v}");
     }
-    let _ = writeln!(s, "- baker: {}\n", r.baker);
+    // Reports since session 9 name the baker with its settings above;
+    // older ones (no such line) still get its name.
+    if !r.settings.iter().any(|(k, _)| k == "baker") {
+        let _ = writeln!(s, "- baker: {}", r.baker);
+    }
+    let _ = writeln!(s);
     sections::scope_note(r, super::honesty::capture_size(r), &mut s);
     let _ = writeln!(s, "\n## Device model against the paper's FPS\n");
     let _ = writeln!(

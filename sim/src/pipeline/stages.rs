@@ -29,7 +29,7 @@ use crate::metrics::{Lpips, Metrics};
 use crate::procedural::{arrange, make_capture, CaptureSpec, Layout, Preset, RenderOptions};
 use crate::render::{try_render_scene, RenderOptions as DrawOptions};
 use crate::scene_file::{self, Scene};
-use crate::segment::{self, SegCapture, SegmentOptions, Segmentation};
+use crate::segment::{self, EnlargeOptions, SegCapture, SegmentOptions, Segmentation};
 use crate::simulate::assets::AssetScene;
 use crate::simulate::{self, SimOptions, Simulation, Turntable, TurntableSpec};
 use anyhow::{bail, Context as _};
@@ -88,6 +88,10 @@ pub struct Options {
     /// (world units). Objects of a composite of separate captures all sit
     /// at their own origin; spreading them makes a plausible turntable.
     pub spread: Option<f32>,
+    /// The segmentation's crop margin: each dedicated network's box grows
+    /// by this fraction of its object's larger box side (0: the paper's
+    /// tight crop, [`EnlargeOptions::margin`]).
+    pub crop_margin: f32,
 }
 
 impl Options {
@@ -109,6 +113,7 @@ impl Options {
             renders: None,
             baseline: (DEFAULT_G, DEFAULT_P),
             spread: None,
+            crop_margin: 0.0,
         }
     }
 
@@ -410,7 +415,14 @@ pub fn prepare(
     progress.stage("segmenting", 1);
     let t0 = Instant::now();
     let seg_dir = out.join("segment");
-    let segmentation = segment::segment(&seg_cap, &SegmentOptions::default(), &seg_dir)
+    let seg_opts = SegmentOptions {
+        enlarge: EnlargeOptions {
+            margin: opts.crop_margin,
+            ..EnlargeOptions::default()
+        },
+        ..SegmentOptions::default()
+    };
+    let segmentation = segment::segment(&seg_cap, &seg_opts, &seg_dir)
         .with_context(|| format!("segmenting {}", seg_cap.source))?;
     timings.segment_s = t0.elapsed().as_secs_f64();
     progress.step("segmented");
