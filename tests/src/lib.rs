@@ -20,6 +20,19 @@ pub fn tiny_configs() -> nerflex_sim::eval::scale::Configs {
     }
 }
 
+/// The suite's tiny pipeline: hull baker (these tests check the
+/// pipeline's machinery, not training), 48 × 48 captures with 6 training
+/// and `test_views` held-out views, [`tiny_configs`], store in `store`.
+pub fn tiny_pipeline(store: PathBuf, test_views: usize) -> nerflex_sim::pipeline::Options {
+    let mut p = nerflex_sim::pipeline::Options::reduced(store);
+    p.baker = nerflex_sim::pipeline::Baker::Hull;
+    p.size = 48;
+    p.train_views = 6;
+    p.test_views = test_views;
+    p.configs = tiny_configs();
+    p
+}
+
 /// Renders without the slow effects (edge and texture supersampling,
 /// shadows, ambient occlusion): what the suite's small captures use.
 pub fn fast_render() -> RenderOptions {

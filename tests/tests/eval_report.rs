@@ -5,20 +5,14 @@
 use nerflex_sim::baselines::Method;
 use nerflex_sim::device::Device;
 use nerflex_sim::eval::{self, EvalOptions, EvalReport, METHODS};
-use nerflex_sim::pipeline::{Baker, Options, Quiet};
+use nerflex_sim::pipeline::Quiet;
 use nerflex_sim::procedural::Preset;
 use nerflex_sim::simulate::{SimOptions, TurntableSpec};
 
 #[test]
 fn tiny_evaluation() {
     let dir = tempfile::tempdir().unwrap();
-    let mut p = Options::reduced(dir.path().join("bakes"));
-    // The hull baker: these tests check the pipeline's machinery, not training.
-    p.baker = Baker::Hull;
-    p.size = 48;
-    p.train_views = 6;
-    p.test_views = 2;
-    p.configs = nerflex_tests::tiny_configs();
+    let mut p = nerflex_tests::tiny_pipeline(dir.path().join("bakes"), 2);
     p.turntable = TurntableSpec {
         angles: 6,
         coverage_width: 40,

@@ -9,19 +9,13 @@
 use nerflex_sim::baselines::Method;
 use nerflex_sim::device::Device;
 use nerflex_sim::eval::{self, compare, detail, verdicts, EvalOptions, EvalReport};
-use nerflex_sim::pipeline::{Baker, Options, Quiet};
+use nerflex_sim::pipeline::Quiet;
 use nerflex_sim::procedural::Preset;
 use nerflex_sim::simulate::{SimOptions, TurntableSpec};
 use std::path::{Path, PathBuf};
 
 fn tiny(dir: &Path) -> (EvalReport, PathBuf) {
-    let mut p = Options::reduced(dir.join("bakes"));
-    // The hull baker: these tests check the pipeline's machinery, not training.
-    p.baker = Baker::Hull;
-    p.size = 48;
-    p.train_views = 6;
-    p.test_views = 3;
-    p.configs = nerflex_tests::tiny_configs();
+    let mut p = nerflex_tests::tiny_pipeline(dir.join("bakes"), 3);
     p.turntable = TurntableSpec {
         angles: 6,
         coverage_width: 40,
@@ -153,12 +147,7 @@ fn a_crop_margin_widens_every_dedicated_networks_crop() {
     use nerflex_sim::pipeline::{prepare, Input};
     let dir = tempfile::tempdir().unwrap();
     let run = |margin: f32| {
-        let mut p = Options::reduced(dir.path().join("bakes"));
-        p.baker = Baker::Hull;
-        p.size = 48;
-        p.train_views = 6;
-        p.test_views = 3;
-        p.configs = nerflex_tests::tiny_configs();
+        let mut p = nerflex_tests::tiny_pipeline(dir.path().join("bakes"), 3);
         p.crop_margin = margin;
         let out = dir.path().join(format!("m{margin}"));
         prepare(&Input::Preset(Preset::Scene4), &p, &out, None, &Quiet).unwrap()
