@@ -35,7 +35,7 @@ pub struct Args {
     #[arg(long)]
     pub renders: Option<PathBuf>,
     /// Coarse-to-fine schedule, `RES:STEPS` comma-separated.
-    #[arg(long, value_delimiter = ',', value_parser = parse_level, default_value = "128:1000,256:6000")]
+    #[arg(long, value_delimiter = ',', value_parser = parse_level, default_value = "128:1000,256:2000,384:3000")]
     pub levels: Vec<Level>,
     /// Rays per optimisation step.
     #[arg(long, default_value_t = 8192)]
@@ -65,6 +65,10 @@ pub struct Args {
     /// `entropy_last`; 0: off).
     #[arg(long, default_value_t = 0.001)]
     pub entropy: f32,
+    /// Weight of the distortion loss (mip-NeRF 360's; 0: off): each ray's
+    /// weight gathers into one thin interval, a sharper surface to bake.
+    #[arg(long, default_value_t = 0.0)]
+    pub distortion: f32,
     /// Samples of smaller weight pass no gradient (0: all do).
     #[arg(long, default_value_t = 1e-4)]
     pub skip_weight: f32,
@@ -173,6 +177,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             lr_final: args.lr_final,
             rgbper: args.rgbper,
             entropy: args.entropy,
+            distortion: args.distortion,
             skip_weight: args.skip_weight,
             tv_density: args.tv_density,
             tv_color: args.tv_color,
