@@ -26,6 +26,7 @@
 
 pub mod analytic;
 pub mod depth;
+pub mod depthcarve;
 pub mod export;
 pub mod extract;
 pub mod featgrid;
@@ -69,6 +70,12 @@ pub struct TrainedParams {
     /// Move the quads onto the field's half-transmittance depth
     /// ([`depth::correct`]; one more G-buffer pass).
     pub depth_correct: bool,
+    /// Rounds of the depth carve ([`depthcarve::carve`]: texels training
+    /// rays reach in front of the field's median depth go; each round one
+    /// more G-buffer pass; 0: none).
+    pub depth_carve_rounds: u32,
+    /// The depth carve's slack, voxels.
+    pub depth_carve_margin: f32,
     /// Train through the renderer's 2 × 2 supersampling
     /// (`render::RenderOptions::supersample`, the default render): each
     /// training pixel shows up to four texels whose mean features the MLP
@@ -99,6 +106,8 @@ impl TrainedParams {
             feature_res: 0,
             carve_rounds: 0,
             depth_correct: false,
+            depth_carve_rounds: 0,
+            depth_carve_margin: 1.0,
             supersample: false,
             hull_carve: true,
             hull_margin: 1,
@@ -161,6 +170,18 @@ impl TrainedParams {
                 self.finetune.epochs
             )));
         }
+        if !(self.depth_carve_margin.is_finite() && self.depth_carve_margin >= 0.0) {
+            return Err(BakeError::BadParam(format!(
+                "--depth-carve-margin {} must be a finite number ≥ 0",
+                self.depth_carve_margin
+            )));
+        }
+        let lr = self.finetune.lr_features;
+        if !(lr.is_finite() && lr > 0.0 && lr <= 1.0) {
+            return Err(BakeError::BadParam(format!(
+                "--feature-lr {lr} must be in (0, 1]"
+            )));
+        }
         Ok(())
     }
 }
@@ -194,6 +215,8 @@ pub struct TrainedStats {
     /// Quads dropped because the training views show them mostly against
     /// the background.
     pub carved_quads: u64,
+    /// The depth carve, summed over its rounds.
+    pub depth_carve: depthcarve::DepthCarveReport,
     /// Of the others, quads some training pixel shows (exported).
     pub kept_quads: u64,
     /// Opaque texels of the kept quads.
@@ -310,6 +333,19 @@ pub fn bake(
             break gb;
         }
     };
+    // Texels the training rays reach in front of the field's surface.
+    let mut gb = gb;
+    let mut depth_carve = depthcarve::DepthCarveReport::default();
+    for _ in 0..params.depth_carve_rounds {
+        let r = depthcarve::carve(field, &mut geo, p, &gb, views, params.depth_carve_margin);
+        depth_carve.pixels_against += r.pixels_against;
+        depth_carve.texels_carved += r.texels_carved;
+        if r.texels_carved == 0 {
+            break;
+        }
+        drop(gb);
+        gb = gbuffer::of_geometry(&geo, p, views, params.supersample)?;
+    }
     // Onto the depth the field's renders show, then look once more.
     let (gb, depth_report) = if params.depth_correct {
         let r = depth::correct(field, &mut geo.quads, p, geo.voxel, &gb, views);
@@ -455,6 +491,7 @@ pub fn bake(
         full_voxels: geo.full_voxels,
         extracted_quads: nq as u64,
         carved_quads: dropped_quads,
+        depth_carve,
         depth: depth_report,
         kept_quads: quads.len() as u64,
         opaque_texels: opaque,

@@ -35,6 +35,18 @@ pub struct TrainedArgs {
     /// Fine-tune passes over the training pixels.
     #[arg(long, default_value_t = 3.0)]
     pub epochs: f32,
+    /// Adam's learning rate on the feature lattice (decays ×0.1 over the
+    /// fine-tune).
+    #[arg(long, default_value_t = 0.03)]
+    pub feature_lr: f32,
+    /// Rounds of the depth carve: texels that training rays reach in
+    /// front of the field's median depth (by more than
+    /// --depth-carve-margin voxels) are emptied; 0: off.
+    #[arg(long, default_value_t = 0)]
+    pub depth_carve: u32,
+    /// Slack of the depth carve, voxels.
+    #[arg(long, default_value_t = 1.0)]
+    pub depth_carve_margin: f32,
     /// Opacity over half a field cell at which a point is inside (0.5
     /// finds almost nothing in a trained field whose surface spreads over
     /// a few cells; 0.05 keeps lego's surface, see docs/baking.md).
@@ -104,6 +116,9 @@ impl TrainedArgs {
     pub fn params(&self, grid: u32, patch: u32) -> TrainedParams {
         let mut p = TrainedParams::new(grid, patch);
         p.finetune.epochs = self.epochs;
+        p.finetune.lr_features = self.feature_lr;
+        p.depth_carve_rounds = self.depth_carve;
+        p.depth_carve_margin = self.depth_carve_margin;
         p.surface_alpha = self.surface_alpha;
         p.feature_res = self.feature_res;
         p.depth_correct = self.depth_correct;
@@ -218,6 +233,12 @@ pub fn bake(
         "trained: {} opaque texels, {} shown by a training pixel; feature lattice {}³ cells, {} vertices, {} reached; {} training pixels; MLP's initial fit: MSE {:.5}",
         s.opaque_texels, s.trained_texels, s.lattice_res, s.lattice_vertices, s.reached_vertices, s.train_pixels, s.fit_mse
     );
+    if args.depth_carve > 0 {
+        println!(
+            "trained: depth carve: {} training pixels reached their texel in front of the field's median depth, {} texels emptied",
+            s.depth_carve.pixels_against, s.depth_carve.texels_carved
+        );
+    }
     if args.depth_correct {
         println!(
             "trained: {} quads moved onto the field's half-transmittance depth (mean {:.2} voxels; {} pixels with a crossing)",
@@ -259,6 +280,16 @@ fn probe(
         pr.surface_psnr,
         pr.far_pixels,
         t0.elapsed().as_secs_f64()
+    );
+    println!(
+        "probe: against the field's median depth (transmittance ½; colour there {:.2} dB): texel > 1 voxel in front {} px ({:.2} dB), within a voxel {} px ({:.2} dB), > 1 voxel behind {} px ({:.2} dB)",
+        pr.median_psnr,
+        pr.by_depth[0],
+        pr.by_depth_psnr[0],
+        pr.by_depth[1],
+        pr.by_depth_psnr[1],
+        pr.by_depth[2],
+        pr.by_depth_psnr[2],
     );
     Ok(())
 }

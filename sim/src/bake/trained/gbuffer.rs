@@ -275,6 +275,16 @@ pub struct TexelProbe {
     pub pixels: u64,
     /// Training pixels of the object (coverage ≥ 50 %).
     pub object_pixels: u64,
+    /// Over the pixels whose ray reaches transmittance ½ in the field (the
+    /// volume renderer's median depth): how many show a texel more than a
+    /// voxel in front of that depth, within a voxel of it, and more than a
+    /// voxel behind it (a crack or a missing texel lets the ray through).
+    pub by_depth: [u64; 3],
+    /// The texel points' PSNR over each of those three sets of pixels.
+    pub by_depth_psnr: [f64; 3],
+    /// The field's colour at the median-depth point itself, over all three:
+    /// the ceiling of a geometry through the volume renderer's surface.
+    pub median_psnr: f64,
 }
 
 /// [`TexelProbe`] of `geo` (at patch `p`) on `views`; `surf` is the
@@ -323,9 +333,36 @@ pub fn probe(
             .map(|k| f64::from(c[k] - px.target[k]).powi(2))
             .sum::<f64>()
     };
-    // (texel point error, and on rays that meet the inside: texel point
-    // error, surface point error, 1)
-    let (se, hit_se2, hit_n) = gb
+    // The distance along a ray at which the field's transmittance falls to
+    // ½ (half-field-cell steps, linear within the crossing step).
+    let fb = field.bounds();
+    let fstep = 0.5 * (fb.max - fb.min).max_element() / field.resolution().max(1) as f32;
+    let median_t = |o: Vec3, d: Vec3| -> Option<f32> {
+        let inv = d.recip();
+        let (a, b) = ((geo.cube.min - o) * inv, (geo.cube.max - o) * inv);
+        let (t0, t1) = (a.min(b).max_element().max(0.0), a.max(b).min_element());
+        let mut t = t0;
+        let mut od = 0.0f32;
+        while t <= t1 {
+            let tau = field.density(o + (t + 0.5 * fstep) * d) * fstep;
+            if od + tau >= std::f32::consts::LN_2 {
+                return Some(t + fstep * (std::f32::consts::LN_2 - od) / tau.max(1e-12));
+            }
+            od += tau;
+            t += fstep;
+        }
+        None
+    };
+    #[derive(Clone, Copy, Default)]
+    struct Acc {
+        se: f64,
+        hit_se: [f64; 2],
+        hit_n: [u64; 2],
+        depth_n: [u64; 3],
+        depth_se: [f64; 3],
+        median_se: f64,
+    }
+    let acc = gb
         .pixels
         .par_iter()
         .zip(origins.par_iter())
@@ -333,27 +370,46 @@ pub fn probe(
             let q = &geo.quads[(px.texel / p2) as usize];
             let t = px.texel % p2;
             let x = super::extract::texel_point(q, p, t % p, t / p);
+            let d = Vec3::from_array(px.dir);
             let e = err(x, px);
-            match on_surface(o, Vec3::from_array(px.dir)) {
-                Some(y) => {
-                    let far = u64::from((x - y).length() > geo.voxel);
-                    (e, [e, err(y, px)], [1u64, far])
-                }
-                None => (e, [0.0; 2], [0; 2]),
+            let mut a = Acc {
+                se: e,
+                ..Acc::default()
+            };
+            if let Some(y) = on_surface(o, d) {
+                a.hit_se = [e, err(y, px)];
+                a.hit_n = [1, u64::from((x - y).length() > geo.voxel)];
             }
+            if let Some(tm) = median_t(o, d) {
+                let off = (x - o).dot(d) - tm;
+                let k = if off < -geo.voxel {
+                    0
+                } else if off <= geo.voxel {
+                    1
+                } else {
+                    2
+                };
+                a.depth_n[k] = 1;
+                a.depth_se[k] = e;
+                a.median_se = err(o + tm * d, px);
+            }
+            a
         })
-        .reduce(
-            || (0.0, [0.0; 2], [0; 2]),
-            |a, b| {
-                (
-                    a.0 + b.0,
-                    [a.1[0] + b.1[0], a.1[1] + b.1[1]],
-                    [a.2[0] + b.2[0], a.2[1] + b.2[1]],
-                )
-            },
-        );
-    let hit = (hit_se2, hit_n);
-    let (hit_se, surface_se, hits, far) = (hit.0[0], hit.0[1], hit.1[0], hit.1[1]);
+        .reduce(Acc::default, |a, b| Acc {
+            se: a.se + b.se,
+            hit_se: [a.hit_se[0] + b.hit_se[0], a.hit_se[1] + b.hit_se[1]],
+            hit_n: [a.hit_n[0] + b.hit_n[0], a.hit_n[1] + b.hit_n[1]],
+            depth_n: std::array::from_fn(|k| a.depth_n[k] + b.depth_n[k]),
+            depth_se: std::array::from_fn(|k| a.depth_se[k] + b.depth_se[k]),
+            median_se: a.median_se + b.median_se,
+        });
+    let (se, hit_se, surface_se, hits, far) = (
+        acc.se,
+        acc.hit_se[0],
+        acc.hit_se[1],
+        acc.hit_n[0],
+        acc.hit_n[1],
+    );
     let object_pixels: u64 = views
         .par_iter()
         .map(|v| {
@@ -376,5 +432,8 @@ pub fn probe(
         far_pixels: far,
         pixels: n,
         object_pixels,
+        by_depth: acc.depth_n,
+        by_depth_psnr: std::array::from_fn(|k| psnr(acc.depth_se[k], acc.depth_n[k])),
+        median_psnr: psnr(acc.median_se, acc.depth_n.iter().sum()),
     })
 }
