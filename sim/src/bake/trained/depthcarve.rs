@@ -15,7 +15,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::extract::{texel_point, Geometry};
+use super::extract::Geometry;
 use super::gbuffer::GBuffers;
 use crate::bake::BakeView;
 use crate::train::field::RadianceField;
@@ -67,23 +67,16 @@ pub fn carve(
     views: &[BakeView<'_>],
     margin: f32,
 ) -> DepthCarveReport {
-    let p2 = p * p;
     let fb = field.bounds();
     let step = 0.5 * (fb.max - fb.min).max_element() / field.resolution().max(1) as f32;
-    let origins = gb.origins(views);
     let slack = margin * geo.voxel;
     // (texel, against) per covered pixel, then sorted by texel.
+    let g: &Geometry = geo;
     let mut votes: Vec<(u32, bool)> = gb
-        .pixels
-        .par_iter()
-        .zip(origins.par_iter())
-        .map(|(px, &o)| {
-            let q = &geo.quads[(px.texel / p2) as usize];
-            let t = px.texel % p2;
-            let x = texel_point(q, p, t % p, t / p);
-            let d = Vec3::from_array(px.dir);
+        .pixel_rays(g, p, views)
+        .map(|(px, [o, d, x])| {
             let depth = (x - o).dot(d);
-            (px.texel, passes(field, geo, step, o, d, depth + slack))
+            (px.texel, passes(field, g, step, o, d, depth + slack))
         })
         .collect();
     let pixels_against = votes.iter().filter(|v| v.1).count() as u64;

@@ -156,6 +156,17 @@ pub fn texel_point(q: &Quad, p: u32, x: u32, y: u32) -> Vec3 {
     q.point(x as f32 / last, y as f32 / last)
 }
 
+impl Geometry {
+    /// The world point of texel index `texel` (`quad · p² + y · p + x`)
+    /// at patch `p`.
+    #[inline]
+    pub fn texel_point(&self, p: u32, texel: u32) -> Vec3 {
+        let p2 = p * p;
+        let t = texel % p2;
+        texel_point(&self.quads[(texel / p2) as usize], p, t % p, t / p)
+    }
+}
+
 /// Binary opacity of every texel of every quad (p² per quad, row-major).
 pub fn texel_opacity(s: &Surface<'_>, quads: &[Quad], p: u32) -> Vec<bool> {
     let p2 = (p * p) as usize;

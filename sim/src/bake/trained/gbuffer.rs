@@ -219,6 +219,24 @@ impl GBuffers {
             .flat_map(|(&n, v)| std::iter::repeat_n(v.camera.position(), n))
             .collect()
     }
+
+    /// Each covered pixel, in parallel, with its ray's origin (the view's
+    /// camera), its unit direction and the world point of the texel it
+    /// shows in `geo` at patch `p`.
+    pub fn pixel_rays<'a>(
+        &'a self,
+        geo: &'a super::extract::Geometry,
+        p: u32,
+        views: &[BakeView<'_>],
+    ) -> impl IndexedParallelIterator<Item = (&'a GPixel, [glam::Vec3; 3])> + 'a {
+        self.origins(views)
+            .into_par_iter()
+            .zip(self.pixels.par_iter())
+            .map(move |(o, px)| {
+                let dir = glam::Vec3::from_array(px.dir);
+                (px, [o, dir, geo.texel_point(p, px.texel)])
+            })
+    }
 }
 
 /// The G-buffers of `geo`'s quads at patch `p` on `views`, through an
@@ -297,9 +315,7 @@ pub fn probe(
 ) -> Result<TexelProbe, BakeError> {
     use glam::Vec3;
     let gb = of_geometry(geo, p, views, false)?;
-    let p2 = p * p;
     let field = surf.field;
-    let origins = gb.origins(views);
     let step = geo.voxel / 8.0;
     let on_surface = |o: Vec3, d: Vec3| -> Option<Vec3> {
         // Entry and exit of the ray through the cube.
@@ -363,14 +379,8 @@ pub fn probe(
         median_se: f64,
     }
     let acc = gb
-        .pixels
-        .par_iter()
-        .zip(origins.par_iter())
-        .map(|(px, &o)| {
-            let q = &geo.quads[(px.texel / p2) as usize];
-            let t = px.texel % p2;
-            let x = super::extract::texel_point(q, p, t % p, t / p);
-            let d = Vec3::from_array(px.dir);
+        .pixel_rays(geo, p, views)
+        .map(|(px, [o, d, x])| {
             let e = err(x, px);
             let mut a = Acc {
                 se: e,
