@@ -45,6 +45,10 @@ use crate::train::field::RadianceField;
 pub use finetune::{FinetuneReport, FinetuneSettings};
 pub use init::FitSettings;
 
+/// Most rounds of the depth carve (each is a G-buffer pass and a march
+/// per training pixel; lego was measured with two).
+pub const MAX_DEPTH_CARVE_ROUNDS: u32 = 8;
+
 /// Version of the trained baker: part of sweep cache keys.
 pub const TRAINED_BAKER_VERSION: u32 = 2;
 
@@ -168,6 +172,12 @@ impl TrainedParams {
             return Err(BakeError::BadParam(format!(
                 "--epochs {} must be a finite number ≥ 0",
                 self.finetune.epochs
+            )));
+        }
+        if self.depth_carve_rounds > MAX_DEPTH_CARVE_ROUNDS {
+            return Err(BakeError::BadParam(format!(
+                "--depth-carve {} must be at most {MAX_DEPTH_CARVE_ROUNDS} (each round rasterizes every training view again)",
+                self.depth_carve_rounds
             )));
         }
         if !(self.depth_carve_margin.is_finite() && self.depth_carve_margin >= 0.0) {
@@ -538,12 +548,17 @@ mod tests {
     #[test]
     fn bad_settings_name_their_flag() {
         assert!(TrainedParams::new(32, 5).validate().is_ok());
-        let bad: [Spoil; 5] = [
+        let bad: [Spoil; 10] = [
             ("--surface-keep", |p| p.surface.keep = f32::NAN),
             ("--surface-grow", |p| p.surface.grow = 2.0),
             ("--carve-rounds", |p| p.carve_rounds = 1000),
             ("--feature-res", |p| p.feature_res = 1),
             ("--epochs", |p| p.finetune.epochs = f32::INFINITY),
+            ("--depth-carve", |p| p.depth_carve_rounds = 1000),
+            ("--depth-carve-margin", |p| p.depth_carve_margin = -1.0),
+            ("--depth-carve-margin", |p| p.depth_carve_margin = f32::NAN),
+            ("--feature-lr", |p| p.finetune.lr_features = 0.0),
+            ("--feature-lr", |p| p.finetune.lr_features = f32::NAN),
         ];
         for (flag, spoil) in bad {
             let mut p = TrainedParams::new(32, 5);
