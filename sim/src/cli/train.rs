@@ -69,6 +69,10 @@ pub struct Args {
     /// weight gathers into one thin interval, a sharper surface to bake.
     #[arg(long, default_value_t = 0.0)]
     pub distortion: f32,
+    /// Learning rates of the levels after the first start at this
+    /// fraction (1: every level restarts at full strength).
+    #[arg(long, default_value_t = 1.0)]
+    pub finer_lr: f32,
     /// Samples of smaller weight pass no gradient (0: all do).
     #[arg(long, default_value_t = 1e-4)]
     pub skip_weight: f32,
@@ -178,6 +182,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             rgbper: args.rgbper,
             entropy: args.entropy,
             distortion: args.distortion,
+            finer_lr: args.finer_lr,
             skip_weight: args.skip_weight,
             tv_density: args.tv_density,
             tv_color: args.tv_color,

@@ -94,6 +94,11 @@ pub struct TrainSettings {
     /// keys of earlier settings do not move.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub distortion: f32,
+    /// The learning rates of every level after the first start at this
+    /// fraction of `lr_density` / `lr_color` (1: each level restarts at
+    /// full strength). Left out of the serialised settings while 1.
+    #[serde(default = "one_f32", skip_serializing_if = "is_one")]
+    pub finer_lr: f32,
 }
 
 impl Default for TrainSettings {
@@ -127,6 +132,7 @@ impl Default for TrainSettings {
             rgbper: 0.01,
             entropy: 0.001,
             distortion: 0.0,
+            finer_lr: 1.0,
             skip_weight: 1e-4,
             tv_density: 1e-10,
             tv_color: 1e-10,
@@ -172,6 +178,7 @@ impl TrainSettings {
             ("lr_color", self.lr_color),
             ("lr_final", self.lr_final),
             ("step", self.step),
+            ("finer_lr", self.finer_lr),
         ];
         for (name, v) in positive {
             if !(v.is_finite() && v > 0.0) {
@@ -207,6 +214,14 @@ fn one() -> u32 {
 
 fn is_zero(v: &f32) -> bool {
     *v == 0.0
+}
+
+fn one_f32() -> f32 {
+    1.0
+}
+
+fn is_one(v: &f32) -> bool {
+    *v == 1.0
 }
 
 /// Largest grid (cells per edge): 512³ cells of index = 0.5 GB.
@@ -389,7 +404,7 @@ pub fn train(
         let (mut sse_acc, mut n_acc) = (0.0f64, 0u64);
         for it in 0..level.iters {
             let frac = it as f32 / level.iters.max(1) as f32;
-            let decay = settings.lr_final.powf(frac);
+            let decay = settings.lr_final.powf(frac) * if li > 0 { settings.finer_lr } else { 1.0 };
             let g = &grid;
             let (sse, samples, rays): (f64, u64, u64) = workers
                 .par_iter_mut()
@@ -486,8 +501,10 @@ mod tests {
         let off = TrainSettings::default();
         let json = serde_json::to_string(&off).unwrap();
         assert!(!json.contains("distortion"), "{json}");
+        assert!(!json.contains("finer_lr"), "{json}");
         let back: TrainSettings = serde_json::from_str(&json).unwrap();
         assert_eq!(back.distortion, 0.0);
+        assert_eq!(back.finer_lr, 1.0);
         let on = TrainSettings {
             distortion: 0.25,
             ..TrainSettings::default()
