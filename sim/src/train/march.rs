@@ -326,19 +326,6 @@ pub struct RayLoss {
     pub distortion: f32,
 }
 
-/// The distortion loss of a ray's samples, (weight, distance along the
-/// ray in grid edges), sorted by distance, each an interval of `delta`.
-pub fn distortion(samples: &[(f32, f32)], delta: f32) -> f32 {
-    let mut l = 0.0;
-    for &(wi, si) in samples {
-        for &(wj, sj) in samples {
-            l += wi * wj * (si - sj).abs();
-        }
-        l += wi * wi * delta / 3.0;
-    }
-    l
-}
-
 /// Renders one ray, compares it with `target` and adds the gradient of
 /// `loss_scale · (‖C − target‖² + 3·reg)` to `grads`, where `reg` is the
 /// weighted regularisers. Returns the ray's colour.
@@ -478,6 +465,19 @@ mod tests {
             g.values[s * len] *= 2.0; // opacities from ~0.07 to ~1 per sample
         }
         g
+    }
+
+    /// The distortion loss straight from its definition (O(n²)): the
+    /// reference the backward pass's prefix sums are checked against.
+    fn distortion(samples: &[(f32, f32)], delta: f32) -> f32 {
+        let mut l = 0.0;
+        for &(wi, si) in samples {
+            for &(wj, sj) in samples {
+                l += wi * wj * (si - sj).abs();
+            }
+            l += wi * wi * delta / 3.0;
+        }
+        l
     }
 
     fn loss(grid: &SparseGrid, ray: &GridRay, p: &MarchParams, target: Vec3) -> f64 {
