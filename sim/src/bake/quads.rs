@@ -9,12 +9,15 @@ use glam::Vec3;
 
 use super::carve::{Grid, ShellGrid, VoxelClass};
 
-/// One quad: a square face of a voxel.
+/// One quad: a face of a voxel, a tilted plane, or (with a `twist`) a
+/// quad of MobileNeRF's mesh whose four corners need not be coplanar.
 ///
 /// Corner order follows the MobileNeRF export: corners 0, 1, 2, 3 are the
 /// patch texels (0, 0), (0, p−1), (p−1, 0), (p−1, p−1) (x along the atlas
 /// row, y down the atlas), and the triangles (0, 1, 3), (0, 3, 2) are
-/// counter-clockwise seen from the outside.
+/// counter-clockwise seen from the outside. The renderer maps each
+/// triangle's texels affinely, so quad point (s, t) is
+/// `origin + s·u + t·v + min(s, t)·twist` (see [`Quad::point`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Quad {
     /// Corner at texel (0, 0), world units.
@@ -27,6 +30,9 @@ pub struct Quad {
     pub normal: Vec3,
     /// The occupied voxel the face belongs to.
     pub voxel: [u32; 3],
+    /// Corner 3 minus the parallelogram's fourth corner (`origin + u +
+    /// v`): zero for planar parallelograms, the bend of a mesh quad.
+    pub twist: Vec3,
 }
 
 impl Quad {
@@ -36,14 +42,17 @@ impl Quad {
             self.origin,
             self.origin + self.v,
             self.origin + self.u,
-            self.origin + self.u + self.v,
+            self.origin + self.u + self.v + self.twist,
         ]
     }
 
-    /// The world point of quad coordinates (s, t) ∈ [0, 1]² (s along `u`).
+    /// The world point of quad coordinates (s, t) ∈ [0, 1]² (s along `u`)
+    /// as the renderer maps it: affine on each triangle, triangle (0, 1,
+    /// 3) where t ≥ s and (0, 3, 2) where s ≥ t, so the twist enters as
+    /// `min(s, t)` (both forms agree on the diagonal s = t).
     #[inline]
     pub fn point(&self, s: f32, t: f32) -> Vec3 {
-        self.origin + s * self.u + t * self.v
+        self.origin + s * self.u + t * self.v + s.min(t) * self.twist
     }
 }
 
@@ -100,6 +109,7 @@ fn face(lo: Vec3, h: f32, axis: usize, sign: i64, voxel: [u32; 3]) -> Quad {
         v,
         normal,
         voxel,
+        twist: Vec3::ZERO,
     }
 }
 

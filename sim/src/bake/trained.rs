@@ -34,6 +34,7 @@ pub mod finetune;
 pub mod gbuffer;
 pub mod init;
 pub mod net;
+pub mod nets;
 
 use glam::Vec3;
 use std::time::Instant;
@@ -52,6 +53,38 @@ pub const MAX_DEPTH_CARVE_ROUNDS: u32 = 8;
 /// Version of the trained baker: part of sweep cache keys.
 pub const TRAINED_BAKER_VERSION: u32 = 2;
 
+/// The geometry a bake extracts from the field.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum GeometryKind {
+    /// Per shell voxel, planar quads tilted onto the surface seen from
+    /// each side ([`extract::extract_with`]).
+    #[default]
+    Planes,
+    /// One connected mesh: a vertex per voxel the surface crosses, a quad
+    /// around each crossing grid edge ([`nets::extract_nets`]; MobileNeRF's
+    /// topology).
+    Mesh,
+    /// The mesh, and the planes in the voxels a feature thinner than a
+    /// voxel crosses without a mesh vertex.
+    MeshFilled,
+}
+
+/// The geometry `params` ask for on `surface`; `None` when the field has
+/// no inside.
+pub fn extract_geometry(
+    surface: &extract::Surface<'_>,
+    params: &TrainedParams,
+) -> Option<extract::Geometry> {
+    let (g, p) = (params.grid, params.patch);
+    match params.geometry {
+        GeometryKind::Planes => extract::extract_with(surface, g, p, &params.surface),
+        GeometryKind::Mesh => nets::extract_nets(surface, g, p, params.surface.refine, None),
+        GeometryKind::MeshFilled => {
+            nets::extract_nets(surface, g, p, params.surface.refine, Some(&params.surface))
+        }
+    }
+}
+
 /// Settings of a bake from a field.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrainedParams {
@@ -64,7 +97,9 @@ pub struct TrainedParams {
     /// Rounds of dropping the quads the training views show mostly
     /// against the background (each one more G-buffer pass; 0: none).
     pub carve_rounds: u32,
-    /// Where the quads go in each shell voxel.
+    /// Which geometry the quads form.
+    pub geometry: GeometryKind,
+    /// Where the quads go in each shell voxel (planes).
     pub surface: extract::SurfaceSettings,
     /// Empty the texels outside the training views' visual hull.
     pub hull_carve: bool,
@@ -115,6 +150,7 @@ impl TrainedParams {
             supersample: false,
             hull_carve: true,
             hull_margin: 1,
+            geometry: GeometryKind::Planes,
             surface: extract::SurfaceSettings::default(),
             fit_samples: 65_536,
             fit: FitSettings::default(),
@@ -296,7 +332,7 @@ pub fn bake(
     let p2 = (p * p) as usize;
     let t0 = Instant::now();
     let surface = extract::Surface::new(field, params.surface_alpha);
-    let geo = extract::extract_with(&surface, g, p, &params.surface).ok_or(BakeError::Empty)?;
+    let geo = extract_geometry(&surface, params).ok_or(BakeError::Empty)?;
     // A point on an opaque object projects onto its silhouette in every
     // view: texels that some training view shows as background go.
     let mut geo = geo;

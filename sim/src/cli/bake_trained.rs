@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context as _};
 
-use crate::bake::trained::{self, analytic::Builtin, TrainedParams};
+use crate::bake::trained::{self, analytic::Builtin, GeometryKind, TrainedParams};
 use crate::bake::{BakeView, BakedObject};
 use crate::capture::SceneInfo;
 use crate::train::field::RadianceField;
@@ -59,6 +59,11 @@ pub struct TrainedArgs {
     /// Quads overlap their neighbours by this fraction of a voxel.
     #[arg(long, default_value_t = 0.125)]
     pub surface_grow: f32,
+    /// The trained baker's quads: `planes` (per voxel, planar quads
+    /// tilted onto the surface) or `mesh` (one connected mesh,
+    /// MobileNeRF's topology).
+    #[arg(long = "surface", value_parser = parse_geometry, default_value = "planes")]
+    pub surface_kind: GeometryKind,
     /// Keep texels outside the training views' visual hull.
     #[arg(long)]
     pub no_hull_carve: bool,
@@ -85,6 +90,17 @@ pub struct TrainedArgs {
     /// each shown texel's point against the pixel; a parallax measure).
     #[arg(long)]
     pub probe: bool,
+}
+
+fn parse_geometry(s: &str) -> Result<GeometryKind, String> {
+    match s {
+        "planes" => Ok(GeometryKind::Planes),
+        "mesh" => Ok(GeometryKind::Mesh),
+        "mesh+planes" => Ok(GeometryKind::MeshFilled),
+        _ => Err(format!(
+            "`{s}` is not a --surface (planes, mesh, mesh+planes)"
+        )),
+    }
 }
 
 fn parse_baker(s: &str) -> Result<Baker, String> {
@@ -125,6 +141,7 @@ impl TrainedArgs {
         p.supersample = self.train_supersample;
         p.carve_rounds = self.carve_rounds;
         p.hull_carve = !self.no_hull_carve;
+        p.geometry = self.surface_kind;
         p.surface.keep = self.surface_keep;
         p.surface.grow = self.surface_grow;
         p
@@ -268,7 +285,7 @@ fn probe(
     let params = args.params(grid, patch);
     params.validate()?;
     let surface = trained::extract::Surface::new(field, params.surface_alpha);
-    let geo = trained::extract::extract_with(&surface, grid, patch, &params.surface)
+    let geo = trained::extract_geometry(&surface, &params)
         .context("--probe: the field has no surface at this --surface-alpha")?;
     let pr = trained::gbuffer::probe(&surface, &geo, patch, views)?;
     println!(

@@ -114,6 +114,7 @@ mod tests {
             v: Vec3::new(0.0, 0.0, e),
             normal: -Vec3::Y,
             voxel: [0; 3],
+            twist: Vec3::ZERO,
         }
     }
 

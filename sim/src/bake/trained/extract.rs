@@ -340,6 +340,7 @@ fn grown_face(lo: Vec3, h: f32, e: f32, axis: usize, positive: bool, voxel: [u32
         v: (h + 2.0 * e) * v,
         normal,
         voxel,
+        twist: Vec3::ZERO,
     }
 }
 
@@ -412,7 +413,7 @@ fn median_depth(s: &Surface<'_>, x: Vec3, dir: Vec3, h: f32) -> Vec3 {
 }
 
 /// The surface quads of one shell voxel (lower corner `lo`, edge `h`).
-fn voxel_quads(
+pub(super) fn voxel_quads(
     s: &Surface<'_>,
     lo: Vec3,
     h: f32,
@@ -562,6 +563,7 @@ fn voxel_quads(
                     v,
                     normal,
                     voxel,
+                    twist: Vec3::ZERO,
                 },
                 occ,
             ));
