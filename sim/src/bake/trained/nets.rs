@@ -250,6 +250,60 @@ mod tests {
         assert!(edges.values().all(|&k| k == 2), "open or non-manifold mesh");
     }
 
+    /// The renderer's G-buffer and `Quad::point` agree on a strongly bent
+    /// quad: the point of the texel each pixel shows lies on that pixel's
+    /// ray (within a texel and a pixel's footprint).
+    #[test]
+    fn the_gbuffer_texel_of_a_bent_quad_lies_on_its_pixel_ray() {
+        use crate::bake::trained::gbuffer;
+        use crate::bake::{Aabb, BakeView, Silhouette};
+        use crate::camera::{Camera, Intrinsics};
+        // A unit quad in the x–z plane facing −y (towards the camera),
+        // corner 3 pulled 0.4 towards the camera.
+        let q = Quad {
+            origin: Vec3::new(-0.5, 0.0, -0.5),
+            u: Vec3::new(0.0, 0.0, 1.0),
+            v: Vec3::new(1.0, 0.0, 0.0),
+            normal: -Vec3::Y,
+            voxel: [0; 3],
+            twist: Vec3::new(0.0, -0.4, 0.0),
+        };
+        assert!(q.u.cross(q.v).dot(q.normal) < 0.0, "u × v = −normal");
+        let p = 17;
+        let geo = Geometry {
+            cube: Aabb {
+                min: Vec3::splat(-1.0),
+                max: Vec3::splat(1.0),
+            },
+            voxel: 1.0,
+            shell_voxels: 1,
+            full_voxels: 0,
+            quads: vec![q],
+            opacity: vec![true; (p * p) as usize],
+        };
+        let size = 96;
+        let k = Intrinsics::from_fov_x(0.5, size, size);
+        let cam = Camera::look_at(Vec3::new(0.8, -3.0, 0.6), Vec3::ZERO, Vec3::Z, k);
+        let image = image::RgbaImage::from_pixel(size, size, image::Rgba([0, 0, 0, 255]));
+        let views = [BakeView {
+            camera: cam,
+            image: &image,
+            silhouette: Silhouette::Alpha,
+        }];
+        let gb = gbuffer::of_geometry(&geo, p, &views, false).unwrap();
+        assert!(gb.pixels.len() > 500, "{} pixels", gb.pixels.len());
+        // A texel spans 1/16 of the quad; a pixel about 0.03 units here.
+        let tol = 0.5 * (1.0f32 / 16.0) * 2f32.sqrt() + 0.03;
+        let worst = gb
+            .pixel_rays(&geo, p, &views)
+            .map(|(_, [o, d, x])| (x - o).cross(d).length())
+            .reduce(|| 0.0, f32::max);
+        assert!(
+            worst < tol,
+            "a texel point {worst} off its pixel's ray (tol {tol})"
+        );
+    }
+
     /// `Quad::point` follows the two triangles: the corners, and points
     /// of each triangle affine in (s, t).
     #[test]
