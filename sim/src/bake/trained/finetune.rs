@@ -23,8 +23,8 @@ use std::time::Instant;
 use super::featgrid::Taps;
 use super::gbuffer::{covered, Subsamples, SUBSAMPLES};
 use super::net::{self, Adam, LaneGrads, FEATURES, LANES};
-use nerflex_core::shader::{INPUTS, OUTPUTS};
 use nerflex_core::shader::MlpWeights;
+use nerflex_core::shader::{INPUTS, OUTPUTS};
 
 /// A training pixel: the texel it shows (its first subsample's under
 /// supersampling), its direction and its target colour.
@@ -281,6 +281,96 @@ struct ChunkInput<'a> {
     shift: u32,
 }
 
+/// Asks the CPU to bring the cache lines of `x` in (a hint, no effect on
+/// results).
+#[inline(always)]
+fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let p = (x as *const T).cast::<i8>();
+        // SAFETY: a prefetch never faults and `x` spans
+        // `size_of::<T>()` bytes from `p` (the last one included).
+        #[allow(unused_unsafe)]
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(p);
+            _mm_prefetch::<_MM_HINT_T0>(p.add(std::mem::size_of::<T>().max(1) - 1));
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
+}
+
+/// How far ahead (in pixels) the gather loop asks for a pixel's record,
+/// its texel's taps and its lattice vertices: each read depends on the
+/// previous one, so they are requested in stages.
+const AHEAD_PIXEL: usize = 24;
+const AHEAD_TAPS: usize = 12;
+const AHEAD_VERTICES: usize = 6;
+
+/// Prefetches stage `stage` (0 record, 1 taps, 2 vertices) of pixel `i`.
+#[inline(always)]
+fn prefetch_pixel(
+    i: u32,
+    stage: u8,
+    pixels: &TrainPixels,
+    taps: &[Taps],
+    values: &[[f32; FEATURES]],
+) {
+    let i = i as usize;
+    match stage {
+        0 => {
+            prefetch(&pixels.pixels[i]);
+            if let Some(s) = pixels.subsamples.get(i) {
+                prefetch(s);
+            }
+        }
+        1 => prefetch(&taps[pixels.pixels[i].slot as usize]),
+        _ => {
+            for &v in &taps[pixels.pixels[i].slot as usize].slot {
+                prefetch(&values[v as usize]);
+            }
+        }
+    }
+}
+
+/// [`Taps::gather`] and [`net::quantise`], inlined (the same operations).
+#[inline(always)]
+fn gather_quantised(t: &Taps, values: &[[f32; FEATURES]]) -> [f32; FEATURES] {
+    let mut f = [0f32; FEATURES];
+    for (&s, &w) in t.slot.iter().zip(&t.w) {
+        let v = &values[s as usize];
+        for c in 0..FEATURES {
+            f[c] += w * v[c];
+        }
+    }
+    for (c, v) in f.iter_mut().enumerate() {
+        *v = net::decode(c, net::encode(c, *v, true));
+    }
+    f
+}
+
+/// [`PixelRef::features`], inlined (the same operations).
+#[inline(always)]
+fn pixel_features(px: &PixelRef<'_>, taps: &[Taps], values: &[[f32; FEATURES]]) -> [f32; FEATURES] {
+    let shown = px.shown();
+    if let [one] = shown {
+        return gather_quantised(&taps[*one as usize], values);
+    }
+    let mut f = [0f32; FEATURES];
+    for &s in shown {
+        let q = gather_quantised(&taps[s as usize], values);
+        for (a, b) in f.iter_mut().zip(q) {
+            *a += b;
+        }
+    }
+    let inv = 1.0 / shown.len().max(1) as f32;
+    for (c, v) in f.iter_mut().enumerate() {
+        *v = net::decode(c, net::encode(c, *v * inv, true));
+    }
+    f
+}
+
 /// The gradient of chunk number `ci` (pixels `chunk`): the MLP's into
 /// `sc.mlp`, the features' as per-item gradients and per-vertex entries.
 #[inline(always)]
@@ -299,10 +389,27 @@ fn chunk_grad(ci: usize, chunk: &[u32], inp: &ChunkInput<'_>, sc: &mut ChunkScra
     // Gather first: the lattice reads are cache misses, independent
     // across pixels, and overlap in a loop of their own instead of
     // waiting behind each pixel's MLP.
+    let pf = |j: usize, stage: u8| {
+        if let Some(&i) = chunk.get(j) {
+            prefetch_pixel(i, stage, pixels, taps, values);
+        }
+    };
+    for j in 0..AHEAD_PIXEL {
+        pf(j, 0);
+    }
+    for j in 0..AHEAD_TAPS {
+        pf(j, 1);
+    }
+    for j in 0..AHEAD_VERTICES {
+        pf(j, 2);
+    }
     let mut item = (ci as u32) << ITEM_BITS;
-    for &i in chunk {
+    for (j, &i) in chunk.iter().enumerate() {
+        pf(j + AHEAD_PIXEL, 0);
+        pf(j + AHEAD_TAPS, 1);
+        pf(j + AHEAD_VERTICES, 2);
         let px = pixels.get(i as usize);
-        sc.feats.push(px.features(taps, values));
+        sc.feats.push(pixel_features(&px, taps, values));
         for &s in px.shown() {
             let t = &taps[s as usize];
             for (&v, &w) in t.slot.iter().zip(&t.w) {
@@ -329,21 +436,29 @@ fn chunk_grad(ci: usize, chunk: &[u32], inp: &ChunkInput<'_>, sc: &mut ChunkScra
         for (l, &i) in group.iter().enumerate() {
             let px = pixels.get(i as usize);
             let cov = px.coverage();
-            for k in 0..OUTPUTS {
-                let c = a.y[k][l] * cov + (1.0 - cov);
-                dy[k][l] = scale * cov * (c - px.target[k]);
+            for ((d, y), t) in dy.iter_mut().zip(&a.y).zip(px.target) {
+                let c = y[l] * cov + (1.0 - cov);
+                d[l] = scale * cov * (c - t);
             }
         }
         let dx = net::backward8(mlp, &a, &dy, &mut sc.lanes);
         for (l, &i) in group.iter().enumerate() {
-            let df: [f32; FEATURES] = std::array::from_fn(|c| dx[c][l]);
             // The mean's gradient, shared by its subsamples
             // (straight-through both roundings).
             let px = pixels.get(i as usize);
             let shown = px.shown();
             let inv = 1.0 / shown.len() as f32;
+            let mut df = [0f32; FEATURES];
+            for (c, d) in df.iter_mut().enumerate() {
+                *d = dx[c][l];
+            }
+            if shown.len() != 1 {
+                for d in &mut df {
+                    *d *= inv;
+                }
+            }
             for _ in shown {
-                sc.df.push(df.map(|v| v * inv));
+                sc.df.push(df);
             }
         }
     }
@@ -361,8 +476,7 @@ unsafe fn chunk_grad_avx2(ci: usize, chunk: &[u32], inp: &ChunkInput<'_>, sc: &m
 /// [`chunk_grad`] with the widest vectors the CPU has.
 fn chunk_grad_best(ci: usize, chunk: &[u32], inp: &ChunkInput<'_>, sc: &mut ChunkScratch) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-    {
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
         // SAFETY: the CPU has the features the function is compiled for.
         unsafe { chunk_grad_avx2(ci, chunk, inp, sc) };
         return;
@@ -393,6 +507,11 @@ fn range_step(
     let mask = (1u32 << ITEM_BITS) - 1;
     let mut at = 0;
     while at < list.len() {
+        if let Some(e) = list.get(at + 16) {
+            let k = e.v as usize - base;
+            prefetch(&moments[k]);
+            prefetch(&vals[k]);
+        }
         let v = list[at].v;
         let mut gk = [0f32; FEATURES];
         while at < list.len() && list[at].v == v {
@@ -443,7 +562,11 @@ pub fn finetune(
     let mut adam = Adam::new(params.len());
     let slots = values.len();
     // Vertex ranges of 2^shift slots.
-    let shift = slots.div_ceil(PARTS).max(1).next_power_of_two().trailing_zeros();
+    let shift = slots
+        .div_ceil(PARTS)
+        .max(1)
+        .next_power_of_two()
+        .trailing_zeros();
     let range = 1usize << shift;
     let parts = slots.div_ceil(range);
     let mut moments = vec![

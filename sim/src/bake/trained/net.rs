@@ -14,7 +14,7 @@ pub const FEATURES: usize = 8;
 
 /// Whether feature channel `c` is an alpha channel (decoded `2·t/255 − 1`,
 /// range [−1, 1]); the others decode `t/255`, range [0, 1].
-#[inline]
+#[inline(always)]
 pub fn is_alpha(c: usize) -> bool {
     c == 3 || c == 7
 }
@@ -22,7 +22,7 @@ pub fn is_alpha(c: usize) -> bool {
 /// The byte the atlas stores for decoded feature value `v` of channel `c`
 /// (nearest; clamped to the channel's range). Channel 0 of an occupied
 /// texel must be ≥ 1 (0 means "empty"): pass `occupied`.
-#[inline]
+#[inline(always)]
 pub fn encode(c: usize, v: f32, occupied: bool) -> u8 {
     let t = if is_alpha(c) {
         ((v + 1.0) * 0.5 * 255.0).round()
@@ -35,7 +35,7 @@ pub fn encode(c: usize, v: f32, occupied: bool) -> u8 {
 
 /// The decoded value of byte `t` in channel `c`, exactly as the shader
 /// decodes it.
-#[inline]
+#[inline(always)]
 pub fn decode(c: usize, t: u8) -> f32 {
     if is_alpha(c) {
         t as f32 * (2.0 / 255.0) - 1.0
@@ -53,7 +53,7 @@ pub fn to_bytes(f: &[f32; FEATURES], occupied: bool) -> ([u8; 4], [u8; 4]) {
 
 /// Forward quantisation (what the atlas stores, decoded back); the
 /// backward pass treats it as the identity (straight-through).
-#[inline]
+#[inline(always)]
 pub fn quantise(f: &[f32; FEATURES]) -> [f32; FEATURES] {
     std::array::from_fn(|c| decode(c, encode(c, f[c], true)))
 }
@@ -240,16 +240,15 @@ impl LaneGrads {
             *l = [0.0; LANES];
             s
         }
-        let pairs = g
-            .w0
-            .iter_mut()
-            .flatten()
-            .zip(self.w0.iter_mut().flatten())
-            .chain(g.b0.iter_mut().zip(&mut self.b0))
-            .chain(g.w1.iter_mut().flatten().zip(self.w1.iter_mut().flatten()))
-            .chain(g.b1.iter_mut().zip(&mut self.b1))
-            .chain(g.w2.iter_mut().flatten().zip(self.w2.iter_mut().flatten()))
-            .chain(g.b2.iter_mut().zip(&mut self.b2));
+        let pairs =
+            g.w0.iter_mut()
+                .flatten()
+                .zip(self.w0.iter_mut().flatten())
+                .chain(g.b0.iter_mut().zip(&mut self.b0))
+                .chain(g.w1.iter_mut().flatten().zip(self.w1.iter_mut().flatten()))
+                .chain(g.b1.iter_mut().zip(&mut self.b1))
+                .chain(g.w2.iter_mut().flatten().zip(self.w2.iter_mut().flatten()))
+                .chain(g.b2.iter_mut().zip(&mut self.b2));
         for (a, l) in pairs {
             *a += sum(l);
         }
@@ -279,23 +278,38 @@ fn dense8<const I: usize, const O: usize>(
     w: &[[f32; O]; I],
     b: &[f32; O],
 ) -> [Lanes; O] {
-    std::array::from_fn(|o| {
-        let mut acc = [b[o]; LANES];
+    // Plain loops (no array `map`/`from_fn`, which may stay calls outside
+    // the caller's vector features).
+    let mut out = [[0f32; LANES]; O];
+    for (o, acc) in out.iter_mut().enumerate() {
+        *acc = [b[o]; LANES];
         for (xi, row) in x.iter().zip(w.iter()) {
-            axpy(&mut acc, xi, row[o]);
+            axpy(acc, xi, row[o]);
         }
-        acc
-    })
+    }
+    out
+}
+
+/// `max(v, 0)` of every value.
+#[inline(always)]
+fn relu8<const O: usize>(h: &mut [Lanes; O]) {
+    for v in h.iter_mut().flatten() {
+        *v = v.max(0.0);
+    }
 }
 
 /// [`forward`] of [`LANES`] pixels at once, lane for lane the same
 /// operations (so bit for bit the same results).
 #[inline(always)]
 pub fn forward8(w: &MlpWeights, x: &[Lanes; INPUTS]) -> Activations8 {
-    let relu = |v: Lanes| v.map(|v| v.max(0.0));
-    let h1 = dense8(x, &w.w0, &w.b0).map(relu);
-    let h2 = dense8(&h1, &w.w1, &w.b1).map(relu);
-    let y = dense8(&h2, &w.w2, &w.b2).map(|z| z.map(|z| 1.0 / (1.0 + (-z).exp())));
+    let mut h1 = dense8(x, &w.w0, &w.b0);
+    relu8(&mut h1);
+    let mut h2 = dense8(&h1, &w.w1, &w.b1);
+    relu8(&mut h2);
+    let mut y = dense8(&h2, &w.w2, &w.b2);
+    for v in y.iter_mut().flatten() {
+        *v = 1.0 / (1.0 + (-*v).exp());
+    }
     Activations8 { x: *x, h1, h2, y }
 }
 
@@ -312,11 +326,10 @@ pub fn backward8(
     dy: &[Lanes; OUTPUTS],
     g: &mut LaneGrads,
 ) -> [Lanes; FEATURES] {
-    let dz: [Lanes; OUTPUTS] = std::array::from_fn(|k| {
-        std::array::from_fn(|l| dy[k][l] * a.y[k][l] * (1.0 - a.y[k][l]))
-    });
+    let mut dz = [[0f32; LANES]; OUTPUTS];
     for k in 0..OUTPUTS {
         for l in 0..LANES {
+            dz[k][l] = dy[k][l] * a.y[k][l] * (1.0 - a.y[k][l]);
             g.b2[k][l] += dz[k][l];
         }
     }
@@ -327,7 +340,9 @@ pub fn backward8(
             fma_lanes(&mut g.w2[j][k], &a.h2[j], &dz[k]);
             axpy(&mut s, &dz[k], w.w2[j][k]);
         }
-        dh2[j] = std::array::from_fn(|l| if a.h2[j][l] > 0.0 { s[l] } else { 0.0 });
+        for l in 0..LANES {
+            dh2[j][l] = if a.h2[j][l] > 0.0 { s[l] } else { 0.0 };
+        }
     }
     let mut dh1 = [[0f32; LANES]; HIDDEN];
     for i in 0..HIDDEN {
@@ -337,7 +352,9 @@ pub fn backward8(
             fma_lanes(&mut g.w1[i][j], hi, &dh2[j]);
             axpy(&mut s, &dh2[j], w.w1[i][j]);
         }
-        dh1[i] = std::array::from_fn(|l| if hi[l] > 0.0 { s[l] } else { 0.0 });
+        for l in 0..LANES {
+            dh1[i][l] = if hi[l] > 0.0 { s[l] } else { 0.0 };
+        }
     }
     for j in 0..HIDDEN {
         for l in 0..LANES {
@@ -632,8 +649,7 @@ mod tests {
             let dys: [[f32; OUTPUTS]; LANES] =
                 std::array::from_fn(|_| std::array::from_fn(|_| rnd() - 0.5));
             let x8: [Lanes; INPUTS] = std::array::from_fn(|i| std::array::from_fn(|l| xs[l][i]));
-            let dy8: [Lanes; OUTPUTS] =
-                std::array::from_fn(|k| std::array::from_fn(|l| dys[l][k]));
+            let dy8: [Lanes; OUTPUTS] = std::array::from_fn(|k| std::array::from_fn(|l| dys[l][k]));
             let a8 = forward8(&w, &x8);
             let dx8 = backward8(&w, &a8, &dy8, &mut lane_g);
             for l in 0..LANES {
@@ -650,7 +666,10 @@ mod tests {
         let (gs, gb) = (flatten(&g_scalar), flatten(&g_batched));
         assert!(gs.iter().any(|&v| v != 0.0));
         for (j, (a, b)) in gs.iter().zip(&gb).enumerate() {
-            assert!((a - b).abs() <= 1e-5 * (1.0 + a.abs()), "param {j}: {a} vs {b}");
+            assert!(
+                (a - b).abs() <= 1e-5 * (1.0 + a.abs()),
+                "param {j}: {a} vs {b}"
+            );
         }
         // Reducing zeroes the lanes.
         let mut again = MlpWeights::ZERO;
