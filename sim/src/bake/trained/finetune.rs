@@ -21,9 +21,10 @@ use rayon::prelude::*;
 use std::time::Instant;
 
 use super::featgrid::Taps;
-use super::gbuffer::{covered, Subsamples};
-use super::net::{self, Adam, FEATURES};
+use super::gbuffer::{covered, Subsamples, SUBSAMPLES};
+use super::net::{self, Adam, LaneGrads, FEATURES, LANES};
 use nerflex_core::shader::MlpWeights;
+use nerflex_core::shader::{INPUTS, OUTPUTS};
 
 /// A training pixel: the texel it shows (its first subsample's under
 /// supersampling), its direction and its target colour.
@@ -209,76 +210,332 @@ pub fn train_psnr(
     10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10()
 }
 
-/// One vertex's Adam state: moments and β₁ᵗ, β₂ᵗ of its own step count
-/// (rarely reached vertices are not under-corrected).
+/// One vertex's Adam moments, a cache line (rarely reached vertices keep
+/// their own β₁ᵗ, β₂ᵗ beside, so they are not under-corrected).
 #[derive(Clone, Copy)]
-struct VertexAdam {
+#[repr(C, align(64))]
+struct Moments {
     m: [f32; FEATURES],
     v: [f32; FEATURES],
-    b1t: f32,
-    b2t: f32,
 }
 
-/// Vertices per block of the parallel optimiser step.
-const BLOCK: usize = 4096;
+/// Pixels per parallel piece of a batch.
+const CHUNK: usize = 512;
+/// Bits of an [`Entry::item`] that index a chunk's items (a pixel has at
+/// most [`SUBSAMPLES`] items).
+const ITEM_BITS: u32 = 12;
+const _: () = assert!(CHUNK * SUBSAMPLES <= 1 << ITEM_BITS);
+/// The largest batch [`Entry::item`] can number.
+const MAX_BATCH: usize = CHUNK << (32 - ITEM_BITS);
+/// About how many vertex ranges the optimiser step is split into (each
+/// range's gradients are summed and stepped on one core).
+const PARTS: usize = 64;
 
-/// Gradient of a batch: MLP and (slot, feature gradient) pairs.
-struct BatchGrad {
+/// One vertex's share of one item's feature gradient (an item: a shown
+/// texel of a batch pixel): vertex `v` gets `w` × the item's gradient.
+#[derive(Clone, Copy)]
+struct Entry {
+    /// Vertex slot.
+    v: u32,
+    /// Chunk (high bits) and item within the chunk ([`ITEM_BITS`]).
+    item: u32,
+    /// Trilinear weight.
+    w: f32,
+}
+
+/// A chunk's working memory, kept across steps.
+struct ChunkScratch {
+    /// Per pixel: the quantised features.
+    feats: Vec<[f32; FEATURES]>,
+    /// Per item: ∂loss/∂(its features).
+    df: Vec<[f32; FEATURES]>,
+    /// Per vertex range: the entries of the chunk's items.
+    buckets: Vec<Vec<Entry>>,
+    /// The MLP gradient, summed per lane.
+    lanes: Box<LaneGrads>,
+    /// … and over the lanes.
     mlp: MlpWeights,
-    feats: Vec<(u32, [f32; FEATURES])>,
 }
 
-fn batch_grad(
-    batch: &[u32],
+impl ChunkScratch {
+    fn new(parts: usize) -> Self {
+        Self {
+            feats: Vec::with_capacity(CHUNK),
+            df: Vec::with_capacity(CHUNK),
+            buckets: vec![Vec::new(); parts],
+            lanes: Box::default(),
+            mlp: MlpWeights::ZERO,
+        }
+    }
+}
+
+/// What a chunk's gradient pass reads.
+struct ChunkInput<'a> {
+    pixels: &'a TrainPixels,
+    taps: &'a [Taps],
+    values: &'a [[f32; FEATURES]],
+    mlp: &'a MlpWeights,
+    /// ∂(mean squared error)/∂(colour) per unit of error.
+    scale: f32,
+    /// Vertex range of slot `v`: `v >> shift`.
+    shift: u32,
+}
+
+/// Asks the CPU to bring the cache lines of `x` in (a hint, no effect on
+/// results).
+#[inline(always)]
+fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let p = (x as *const T).cast::<i8>();
+        // SAFETY: a prefetch never faults and `x` spans
+        // `size_of::<T>()` bytes from `p` (the last one included).
+        #[allow(unused_unsafe)]
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(p);
+            _mm_prefetch::<_MM_HINT_T0>(p.add(std::mem::size_of::<T>().max(1) - 1));
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
+}
+
+/// How far ahead (in pixels) the gather loop asks for a pixel's record,
+/// its texel's taps and its lattice vertices: each read depends on the
+/// previous one, so they are requested in stages.
+const AHEAD_PIXEL: usize = 24;
+const AHEAD_TAPS: usize = 12;
+const AHEAD_VERTICES: usize = 6;
+
+/// Prefetches stage `stage` (0 record, 1 taps, 2 vertices) of pixel `i`.
+#[inline(always)]
+fn prefetch_pixel(
+    i: u32,
+    stage: u8,
     pixels: &TrainPixels,
     taps: &[Taps],
     values: &[[f32; FEATURES]],
-    mlp: &MlpWeights,
-) -> BatchGrad {
-    let scale = 2.0 / (3 * batch.len()) as f32;
-    batch
-        .par_chunks(512)
-        .map(|chunk| {
-            let mut g = BatchGrad {
-                mlp: MlpWeights::ZERO,
-                feats: Vec::with_capacity(chunk.len()),
-            };
-            // Gather first: the lattice reads are cache misses, independent
-            // across pixels, and overlap in a loop of their own instead of
-            // waiting behind each pixel's MLP.
-            let features: Vec<[f32; FEATURES]> = chunk
-                .iter()
-                .map(|&i| pixels.get(i as usize).features(taps, values))
-                .collect();
-            for (&i, f) in chunk.iter().zip(&features) {
-                let px = pixels.get(i as usize);
-                let x = net::input(f, px.dir);
-                let a = net::forward(mlp, &x);
-                let c = px.blend(a.y);
-                let cov = px.coverage();
-                let dy = std::array::from_fn(|k| scale * cov * (c[k] - px.target[k]));
-                let df = net::backward(mlp, &a, dy, &mut g.mlp);
-                // The mean's gradient, shared by its subsamples
-                // (straight-through both roundings).
-                let shown = px.shown();
-                let inv = 1.0 / shown.len() as f32;
-                for &s in shown {
-                    g.feats.push((s, df.map(|v| v * inv)));
+) {
+    let i = i as usize;
+    match stage {
+        0 => {
+            prefetch(&pixels.pixels[i]);
+            if let Some(s) = pixels.subsamples.get(i) {
+                prefetch(s);
+            }
+        }
+        1 => prefetch(&taps[pixels.pixels[i].slot as usize]),
+        _ => {
+            for &v in &taps[pixels.pixels[i].slot as usize].slot {
+                prefetch(&values[v as usize]);
+            }
+        }
+    }
+}
+
+/// [`Taps::gather`] and [`net::quantise`], inlined (the same operations).
+#[inline(always)]
+fn gather_quantised(t: &Taps, values: &[[f32; FEATURES]]) -> [f32; FEATURES] {
+    let mut f = [0f32; FEATURES];
+    for (&s, &w) in t.slot.iter().zip(&t.w) {
+        let v = &values[s as usize];
+        for c in 0..FEATURES {
+            f[c] += w * v[c];
+        }
+    }
+    for (c, v) in f.iter_mut().enumerate() {
+        *v = net::decode(c, net::encode(c, *v, true));
+    }
+    f
+}
+
+/// [`PixelRef::features`], inlined (the same operations).
+#[inline(always)]
+fn pixel_features(px: &PixelRef<'_>, taps: &[Taps], values: &[[f32; FEATURES]]) -> [f32; FEATURES] {
+    let shown = px.shown();
+    if let [one] = shown {
+        return gather_quantised(&taps[*one as usize], values);
+    }
+    let mut f = [0f32; FEATURES];
+    for &s in shown {
+        let q = gather_quantised(&taps[s as usize], values);
+        for (a, b) in f.iter_mut().zip(q) {
+            *a += b;
+        }
+    }
+    let inv = 1.0 / shown.len().max(1) as f32;
+    for (c, v) in f.iter_mut().enumerate() {
+        *v = net::decode(c, net::encode(c, *v * inv, true));
+    }
+    f
+}
+
+/// The gradient of chunk number `ci` (pixels `chunk`): the MLP's into
+/// `sc.mlp`, the features' as per-item gradients and per-vertex entries.
+#[inline(always)]
+fn chunk_grad(ci: usize, chunk: &[u32], inp: &ChunkInput<'_>, sc: &mut ChunkScratch) {
+    let ChunkInput {
+        pixels,
+        taps,
+        values,
+        mlp,
+        scale,
+        shift,
+    } = *inp;
+    sc.feats.clear();
+    sc.df.clear();
+    sc.buckets.iter_mut().for_each(Vec::clear);
+    // Gather first: the lattice reads are cache misses, independent
+    // across pixels, and overlap in a loop of their own instead of
+    // waiting behind each pixel's MLP.
+    let pf = |j: usize, stage: u8| {
+        if let Some(&i) = chunk.get(j) {
+            prefetch_pixel(i, stage, pixels, taps, values);
+        }
+    };
+    for j in 0..AHEAD_PIXEL {
+        pf(j, 0);
+    }
+    for j in 0..AHEAD_TAPS {
+        pf(j, 1);
+    }
+    for j in 0..AHEAD_VERTICES {
+        pf(j, 2);
+    }
+    let mut item = (ci as u32) << ITEM_BITS;
+    for (j, &i) in chunk.iter().enumerate() {
+        pf(j + AHEAD_PIXEL, 0);
+        pf(j + AHEAD_TAPS, 1);
+        pf(j + AHEAD_VERTICES, 2);
+        let px = pixels.get(i as usize);
+        sc.feats.push(pixel_features(&px, taps, values));
+        for &s in px.shown() {
+            let t = &taps[s as usize];
+            for (&v, &w) in t.slot.iter().zip(&t.w) {
+                sc.buckets[(v >> shift) as usize].push(Entry { v, item, w });
+            }
+            item += 1;
+        }
+    }
+    // The MLP, LANES pixels at a time (the last group padded with zero
+    // inputs and zero output gradients, which add nothing).
+    for (group, feats) in chunk.chunks(LANES).zip(sc.feats.chunks(LANES)) {
+        let mut x = [[0f32; LANES]; INPUTS];
+        for (l, (&i, f)) in group.iter().zip(feats).enumerate() {
+            let px = pixels.get(i as usize);
+            for (c, &v) in f.iter().enumerate() {
+                x[c][l] = v;
+            }
+            for (c, &d) in px.dir.iter().enumerate() {
+                x[FEATURES + c][l] = d;
+            }
+        }
+        let a = net::forward8(mlp, &x);
+        let mut dy = [[0f32; LANES]; OUTPUTS];
+        for (l, &i) in group.iter().enumerate() {
+            let px = pixels.get(i as usize);
+            let cov = px.coverage();
+            for ((d, y), t) in dy.iter_mut().zip(&a.y).zip(px.target) {
+                let c = y[l] * cov + (1.0 - cov);
+                d[l] = scale * cov * (c - t);
+            }
+        }
+        let dx = net::backward8(mlp, &a, &dy, &mut sc.lanes);
+        for (l, &i) in group.iter().enumerate() {
+            // The mean's gradient, shared by its subsamples
+            // (straight-through both roundings).
+            let px = pixels.get(i as usize);
+            let shown = px.shown();
+            let inv = 1.0 / shown.len() as f32;
+            let mut df = [0f32; FEATURES];
+            for (c, d) in df.iter_mut().enumerate() {
+                *d = dx[c][l];
+            }
+            if shown.len() != 1 {
+                for d in &mut df {
+                    *d *= inv;
                 }
             }
-            g
-        })
-        .reduce(
-            || BatchGrad {
-                mlp: MlpWeights::ZERO,
-                feats: Vec::new(),
-            },
-            |mut a, b| {
-                net::add_into(&mut a.mlp, &b.mlp);
-                a.feats.extend(b.feats);
-                a
-            },
-        )
+            for _ in shown {
+                sc.df.push(df);
+            }
+        }
+    }
+    sc.mlp = MlpWeights::ZERO;
+    sc.lanes.reduce_into(&mut sc.mlp);
+}
+
+/// [`chunk_grad`] compiled for AVX2 (a lane group is one register).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn chunk_grad_avx2(ci: usize, chunk: &[u32], inp: &ChunkInput<'_>, sc: &mut ChunkScratch) {
+    chunk_grad(ci, chunk, inp, sc);
+}
+
+/// [`chunk_grad`] with the widest vectors the CPU has.
+fn chunk_grad_best(ci: usize, chunk: &[u32], inp: &ChunkInput<'_>, sc: &mut ChunkScratch) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU has the features the function is compiled for.
+        unsafe { chunk_grad_avx2(ci, chunk, inp, sc) };
+        return;
+    }
+    chunk_grad(ci, chunk, inp, sc);
+}
+
+/// Sums the entries of one vertex range (`list`, from every chunk; the
+/// range starts at slot `base`) per vertex and takes each reached vertex's
+/// Adam step.
+#[allow(clippy::too_many_arguments)]
+fn range_step(
+    list: &mut Vec<Entry>,
+    scratch: &[ChunkScratch],
+    part: usize,
+    base: usize,
+    vals: &mut [[f32; FEATURES]],
+    moments: &mut [Moments],
+    bt: &mut [[f32; 2]],
+    lr: f32,
+) {
+    list.clear();
+    for sc in scratch {
+        list.extend_from_slice(&sc.buckets[part]);
+    }
+    // By vertex, then in batch order (the order a serial scatter adds in).
+    list.sort_unstable_by_key(|e| (u64::from(e.v) << 32) | u64::from(e.item));
+    let mask = (1u32 << ITEM_BITS) - 1;
+    let mut at = 0;
+    while at < list.len() {
+        if let Some(e) = list.get(at + 16) {
+            let k = e.v as usize - base;
+            prefetch(&moments[k]);
+            prefetch(&vals[k]);
+        }
+        let v = list[at].v;
+        let mut gk = [0f32; FEATURES];
+        while at < list.len() && list[at].v == v {
+            let e = list[at];
+            let df = &scratch[(e.item >> ITEM_BITS) as usize].df[(e.item & mask) as usize];
+            for c in 0..FEATURES {
+                gk[c] += e.w * df[c];
+            }
+            at += 1;
+        }
+        let k = v as usize - base;
+        let [b1t, b2t] = &mut bt[k];
+        *b1t *= net::BETA1;
+        *b2t *= net::BETA2;
+        let (c1, c2) = (1.0 - *b1t, 1.0 - *b2t);
+        let a = &mut moments[k];
+        let f = &mut vals[k];
+        for c in 0..FEATURES {
+            a.m[c] = net::BETA1 * a.m[c] + (1.0 - net::BETA1) * gk[c];
+            a.v[c] = net::BETA2 * a.v[c] + (1.0 - net::BETA2) * gk[c] * gk[c];
+            f[c] -= lr * (a.m[c] / c1) / ((a.v[c] / c2).sqrt() + net::EPS);
+        }
+        net::clamp(f);
+    }
 }
 
 /// Fine-tunes the lattice's `values` (which the shown texels read through
@@ -294,29 +551,36 @@ pub fn finetune(
     let stride = (pixels.len() / 1_000_000).max(1);
     let psnr_before = train_psnr(pixels, taps, values, mlp, stride);
     let n = pixels.len();
-    let batch = s.batch.max(1);
+    let batch = s.batch.clamp(1, MAX_BATCH);
     let total = (s.epochs.max(0.0) as f64 * n as f64).round() as u64;
     let steps = total.div_ceil(batch as u64) as usize;
     let mut rng = ChaCha8Rng::seed_from_u64(s.seed);
     let mut order: Vec<u32> = (0..n as u32).collect();
     let mut pos = n;
     let mut params = net::flatten(mlp);
+    let mut flat_grad = Vec::with_capacity(params.len());
     let mut adam = Adam::new(params.len());
     let slots = values.len();
-    let mut st = vec![
-        VertexAdam {
+    // Vertex ranges of 2^shift slots.
+    let shift = slots
+        .div_ceil(PARTS)
+        .max(1)
+        .next_power_of_two()
+        .trailing_zeros();
+    let range = 1usize << shift;
+    let parts = slots.div_ceil(range);
+    let mut moments = vec![
+        Moments {
             m: [0.0; FEATURES],
             v: [0.0; FEATURES],
-            b1t: 1.0,
-            b2t: 1.0,
         };
         slots
     ];
-    let mut grad = vec![[0f32; FEATURES]; slots];
-    // The step (+1) in which each vertex was last touched.
-    let mut stamp = vec![0u32; slots];
-    // Touched vertices, by block: each block's Adam steps run on one core.
-    let mut touched: Vec<Vec<u32>> = vec![Vec::new(); slots.div_ceil(BLOCK)];
+    let mut bt = vec![[1f32; 2]; slots];
+    let mut scratch: Vec<ChunkScratch> = (0..batch.div_ceil(CHUNK))
+        .map(|_| ChunkScratch::new(parts))
+        .collect();
+    let mut lists: Vec<Vec<Entry>> = vec![Vec::new(); parts];
     let mut idx: Vec<u32> = Vec::with_capacity(batch);
     let mut pixel_steps = 0u64;
     for step in 0..steps {
@@ -331,46 +595,39 @@ pub fn finetune(
             pos += take;
         }
         pixel_steps += idx.len() as u64;
-        let g = batch_grad(&idx, pixels, taps, values, mlp);
+        let inp = ChunkInput {
+            pixels,
+            taps,
+            values,
+            mlp,
+            scale: 2.0 / (3 * idx.len()) as f32,
+            shift,
+        };
+        idx.par_chunks(CHUNK)
+            .zip(scratch.par_iter_mut())
+            .enumerate()
+            .for_each(|(ci, (chunk, sc))| chunk_grad_best(ci, chunk, &inp, sc));
+        let used = &scratch[..idx.len().div_ceil(CHUNK)];
         let decay = 0.1f32.powf(step as f32 / steps.max(1) as f32);
         // MLP.
-        adam.step(&mut params, &net::flatten(&g.mlp), s.lr_mlp * decay);
-        *mlp = net::unflatten(&params);
-        // Features: sum per vertex, then one Adam step per touched vertex.
-        for (slot, df) in &g.feats {
-            let t = &taps[*slot as usize];
-            for &v in &t.slot {
-                if stamp[v as usize] != step as u32 + 1 {
-                    stamp[v as usize] = step as u32 + 1;
-                    touched[v as usize / BLOCK].push(v);
-                }
-            }
-            t.scatter(df, &mut grad);
+        let mut g = MlpWeights::ZERO;
+        for sc in used {
+            net::add_into(&mut g, &sc.mlp);
         }
+        net::flatten_into(&g, &mut flat_grad);
+        adam.step(&mut params, &flat_grad, s.lr_mlp * decay);
+        *mlp = net::unflatten(&params);
+        // Features: per vertex range, sum each reached vertex's entries and
+        // take its Adam step.
         let lr = s.lr_features * decay;
         values
-            .par_chunks_mut(BLOCK)
-            .zip(st.par_chunks_mut(BLOCK))
-            .zip(grad.par_chunks_mut(BLOCK))
-            .zip(touched.par_iter_mut())
+            .par_chunks_mut(range)
+            .zip(moments.par_chunks_mut(range))
+            .zip(bt.par_chunks_mut(range))
+            .zip(lists.par_iter_mut())
             .enumerate()
-            .for_each(|(b, (((vals, sts), grads), list))| {
-                for &slot in list.iter() {
-                    let k = slot as usize - b * BLOCK;
-                    let gk = std::mem::replace(&mut grads[k], [0.0; FEATURES]);
-                    let a = &mut sts[k];
-                    a.b1t *= net::BETA1;
-                    a.b2t *= net::BETA2;
-                    let (c1, c2) = (1.0 - a.b1t, 1.0 - a.b2t);
-                    let f = &mut vals[k];
-                    for c in 0..FEATURES {
-                        a.m[c] = net::BETA1 * a.m[c] + (1.0 - net::BETA1) * gk[c];
-                        a.v[c] = net::BETA2 * a.v[c] + (1.0 - net::BETA2) * gk[c] * gk[c];
-                        f[c] -= lr * (a.m[c] / c1) / ((a.v[c] / c2).sqrt() + net::EPS);
-                    }
-                    net::clamp(f);
-                }
-                list.clear();
+            .for_each(|(p, (((vals, mom), bts), list))| {
+                range_step(list, used, p, p * range, vals, mom, bts, lr);
             });
     }
     let psnr_after = train_psnr(pixels, taps, values, mlp, stride);

@@ -14,7 +14,7 @@ pub const FEATURES: usize = 8;
 
 /// Whether feature channel `c` is an alpha channel (decoded `2·t/255 − 1`,
 /// range [−1, 1]); the others decode `t/255`, range [0, 1].
-#[inline]
+#[inline(always)]
 pub fn is_alpha(c: usize) -> bool {
     c == 3 || c == 7
 }
@@ -22,7 +22,7 @@ pub fn is_alpha(c: usize) -> bool {
 /// The byte the atlas stores for decoded feature value `v` of channel `c`
 /// (nearest; clamped to the channel's range). Channel 0 of an occupied
 /// texel must be ≥ 1 (0 means "empty"): pass `occupied`.
-#[inline]
+#[inline(always)]
 pub fn encode(c: usize, v: f32, occupied: bool) -> u8 {
     let t = if is_alpha(c) {
         ((v + 1.0) * 0.5 * 255.0).round()
@@ -35,7 +35,7 @@ pub fn encode(c: usize, v: f32, occupied: bool) -> u8 {
 
 /// The decoded value of byte `t` in channel `c`, exactly as the shader
 /// decodes it.
-#[inline]
+#[inline(always)]
 pub fn decode(c: usize, t: u8) -> f32 {
     if is_alpha(c) {
         t as f32 * (2.0 / 255.0) - 1.0
@@ -53,7 +53,7 @@ pub fn to_bytes(f: &[f32; FEATURES], occupied: bool) -> ([u8; 4], [u8; 4]) {
 
 /// Forward quantisation (what the atlas stores, decoded back); the
 /// backward pass treats it as the identity (straight-through).
-#[inline]
+#[inline(always)]
 pub fn quantise(f: &[f32; FEATURES]) -> [f32; FEATURES] {
     std::array::from_fn(|c| decode(c, encode(c, f[c], true)))
 }
@@ -186,6 +186,199 @@ pub fn backward(
     dx
 }
 
+/// Pixels the batched passes ([`forward8`], [`backward8`]) run side by
+/// side: one value per lane, so each weight is one broadcast and every
+/// layer is a loop over lanes the compiler vectorises (one AVX register).
+pub const LANES: usize = 8;
+
+/// One value per lane.
+pub type Lanes = [f32; LANES];
+
+/// [`Activations`] of [`LANES`] pixels, structure of arrays.
+#[derive(Debug, Clone, Copy)]
+pub struct Activations8 {
+    /// Input.
+    pub x: [Lanes; INPUTS],
+    /// First hidden layer after ReLU.
+    pub h1: [Lanes; HIDDEN],
+    /// Second hidden layer after ReLU.
+    pub h2: [Lanes; HIDDEN],
+    /// Output (sigmoid).
+    pub y: [Lanes; OUTPUTS],
+}
+
+/// Weight gradients summed per lane ([`backward8`] adds into them); the
+/// lanes are added up by [`LaneGrads::reduce_into`].
+#[derive(Debug, Clone)]
+pub struct LaneGrads {
+    w0: [[Lanes; HIDDEN]; INPUTS],
+    b0: [Lanes; HIDDEN],
+    w1: [[Lanes; HIDDEN]; HIDDEN],
+    b1: [Lanes; HIDDEN],
+    w2: [[Lanes; OUTPUTS]; HIDDEN],
+    b2: [Lanes; OUTPUTS],
+}
+
+impl Default for LaneGrads {
+    fn default() -> Self {
+        Self {
+            w0: [[[0.0; LANES]; HIDDEN]; INPUTS],
+            b0: [[0.0; LANES]; HIDDEN],
+            w1: [[[0.0; LANES]; HIDDEN]; HIDDEN],
+            b1: [[0.0; LANES]; HIDDEN],
+            w2: [[[0.0; LANES]; OUTPUTS]; HIDDEN],
+            b2: [[0.0; LANES]; OUTPUTS],
+        }
+    }
+}
+
+impl LaneGrads {
+    /// Adds the lanes' sums into `g` and zeroes them.
+    pub fn reduce_into(&mut self, g: &mut MlpWeights) {
+        fn sum(l: &mut Lanes) -> f32 {
+            let s = l.iter().sum();
+            *l = [0.0; LANES];
+            s
+        }
+        let pairs =
+            g.w0.iter_mut()
+                .flatten()
+                .zip(self.w0.iter_mut().flatten())
+                .chain(g.b0.iter_mut().zip(&mut self.b0))
+                .chain(g.w1.iter_mut().flatten().zip(self.w1.iter_mut().flatten()))
+                .chain(g.b1.iter_mut().zip(&mut self.b1))
+                .chain(g.w2.iter_mut().flatten().zip(self.w2.iter_mut().flatten()))
+                .chain(g.b2.iter_mut().zip(&mut self.b2));
+        for (a, l) in pairs {
+            *a += sum(l);
+        }
+    }
+}
+
+/// `acc[l] += x[l] · w` over the lanes.
+#[inline(always)]
+fn axpy(acc: &mut Lanes, x: &Lanes, w: f32) {
+    for (a, &v) in acc.iter_mut().zip(x) {
+        *a += v * w;
+    }
+}
+
+/// `acc[l] += x[l] · y[l]` over the lanes.
+#[inline(always)]
+fn fma_lanes(acc: &mut Lanes, x: &Lanes, y: &Lanes) {
+    for ((a, &u), &v) in acc.iter_mut().zip(x).zip(y) {
+        *a += u * v;
+    }
+}
+
+/// [`dense`] of each lane, in its order of operations.
+#[inline(always)]
+fn dense8<const I: usize, const O: usize>(
+    x: &[Lanes; I],
+    w: &[[f32; O]; I],
+    b: &[f32; O],
+) -> [Lanes; O] {
+    // Plain loops (no array `map`/`from_fn`, which may stay calls outside
+    // the caller's vector features).
+    let mut out = [[0f32; LANES]; O];
+    for (o, acc) in out.iter_mut().enumerate() {
+        *acc = [b[o]; LANES];
+        for (xi, row) in x.iter().zip(w.iter()) {
+            axpy(acc, xi, row[o]);
+        }
+    }
+    out
+}
+
+/// `max(v, 0)` of every value.
+#[inline(always)]
+fn relu8<const O: usize>(h: &mut [Lanes; O]) {
+    for v in h.iter_mut().flatten() {
+        *v = v.max(0.0);
+    }
+}
+
+/// [`forward`] of [`LANES`] pixels at once, lane for lane the same
+/// operations (so bit for bit the same results).
+#[inline(always)]
+pub fn forward8(w: &MlpWeights, x: &[Lanes; INPUTS]) -> Activations8 {
+    let mut h1 = dense8(x, &w.w0, &w.b0);
+    relu8(&mut h1);
+    let mut h2 = dense8(&h1, &w.w1, &w.b1);
+    relu8(&mut h2);
+    let mut y = dense8(&h2, &w.w2, &w.b2);
+    for v in y.iter_mut().flatten() {
+        *v = 1.0 / (1.0 + (-*v).exp());
+    }
+    Activations8 { x: *x, h1, h2, y }
+}
+
+/// [`backward`] of [`LANES`] pixels at once: the same operations per lane
+/// for ∂loss/∂(features), returned per lane; the weight gradients are
+/// summed per lane into `g` (so their sums differ from [`backward`]'s only
+/// by the order of additions).
+#[inline(always)]
+// Index loops: each index runs over several arrays at once, as the math reads.
+#[allow(clippy::needless_range_loop)]
+pub fn backward8(
+    w: &MlpWeights,
+    a: &Activations8,
+    dy: &[Lanes; OUTPUTS],
+    g: &mut LaneGrads,
+) -> [Lanes; FEATURES] {
+    let mut dz = [[0f32; LANES]; OUTPUTS];
+    for k in 0..OUTPUTS {
+        for l in 0..LANES {
+            dz[k][l] = dy[k][l] * a.y[k][l] * (1.0 - a.y[k][l]);
+            g.b2[k][l] += dz[k][l];
+        }
+    }
+    let mut dh2 = [[0f32; LANES]; HIDDEN];
+    for j in 0..HIDDEN {
+        let mut s = [0f32; LANES];
+        for k in 0..OUTPUTS {
+            fma_lanes(&mut g.w2[j][k], &a.h2[j], &dz[k]);
+            axpy(&mut s, &dz[k], w.w2[j][k]);
+        }
+        for l in 0..LANES {
+            dh2[j][l] = if a.h2[j][l] > 0.0 { s[l] } else { 0.0 };
+        }
+    }
+    let mut dh1 = [[0f32; LANES]; HIDDEN];
+    for i in 0..HIDDEN {
+        let hi = &a.h1[i];
+        let mut s = [0f32; LANES];
+        for j in 0..HIDDEN {
+            fma_lanes(&mut g.w1[i][j], hi, &dh2[j]);
+            axpy(&mut s, &dh2[j], w.w1[i][j]);
+        }
+        for l in 0..LANES {
+            dh1[i][l] = if hi[l] > 0.0 { s[l] } else { 0.0 };
+        }
+    }
+    for j in 0..HIDDEN {
+        for l in 0..LANES {
+            g.b1[j][l] += dh2[j][l];
+            g.b0[j][l] += dh1[j][l];
+        }
+    }
+    let mut dx = [[0f32; LANES]; FEATURES];
+    for i in 0..INPUTS {
+        let xi = &a.x[i];
+        for j in 0..HIDDEN {
+            fma_lanes(&mut g.w0[i][j], xi, &dh1[j]);
+        }
+        if i < FEATURES {
+            let mut s = [0f32; LANES];
+            for j in 0..HIDDEN {
+                axpy(&mut s, &dh1[j], w.w0[i][j]);
+            }
+            dx[i] = s;
+        }
+    }
+    dx
+}
+
 /// Number of MLP parameters (11·16 + 16 + 16·16 + 16 + 16·3 + 3 = 515).
 pub const PARAMS: usize =
     INPUTS * HIDDEN + HIDDEN + HIDDEN * HIDDEN + HIDDEN + HIDDEN * OUTPUTS + OUTPUTS;
@@ -193,13 +386,19 @@ pub const PARAMS: usize =
 /// The parameters as one flat vector (for the optimiser), in a fixed order.
 pub fn flatten(w: &MlpWeights) -> Vec<f32> {
     let mut v = Vec::with_capacity(PARAMS);
+    flatten_into(w, &mut v);
+    v
+}
+
+/// [`flatten`] into `v` (cleared first), reusing its allocation.
+pub fn flatten_into(w: &MlpWeights, v: &mut Vec<f32>) {
+    v.clear();
     w.w0.iter().for_each(|r| v.extend_from_slice(r));
     v.extend_from_slice(&w.b0);
     w.w1.iter().for_each(|r| v.extend_from_slice(r));
     v.extend_from_slice(&w.b1);
     w.w2.iter().for_each(|r| v.extend_from_slice(r));
     v.extend_from_slice(&w.b2);
-    v
 }
 
 /// The inverse of [`flatten`]; `v` must hold [`PARAMS`] values.
@@ -411,6 +610,71 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The batched passes against the scalar ones on random inputs: the
+    /// activations and feature gradients bit for bit, the weight gradients
+    /// (summed in another order) to rounding.
+    #[test]
+    fn batched_passes_match_the_scalar_ones() {
+        let mut w = random_weights(17);
+        w.b0.iter_mut()
+            .enumerate()
+            .for_each(|(i, b)| *b = 0.07 * (i as f32 - 8.0));
+        w.b1.iter_mut()
+            .enumerate()
+            .for_each(|(i, b)| *b = 0.04 * (i as f32 - 6.0));
+        w.b2 = [0.1, -0.2, 0.3];
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        let mut rnd = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut lane_g = LaneGrads::default();
+        let mut g_scalar = MlpWeights::ZERO;
+        for _ in 0..40 {
+            let xs: [[f32; INPUTS]; LANES] = std::array::from_fn(|_| {
+                let f: [f32; FEATURES] = std::array::from_fn(|c| {
+                    if is_alpha(c) {
+                        2.0 * rnd() - 1.0
+                    } else {
+                        rnd()
+                    }
+                });
+                let d = glam::Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize();
+                input(&quantise(&f), d.to_array())
+            });
+            let dys: [[f32; OUTPUTS]; LANES] =
+                std::array::from_fn(|_| std::array::from_fn(|_| rnd() - 0.5));
+            let x8: [Lanes; INPUTS] = std::array::from_fn(|i| std::array::from_fn(|l| xs[l][i]));
+            let dy8: [Lanes; OUTPUTS] = std::array::from_fn(|k| std::array::from_fn(|l| dys[l][k]));
+            let a8 = forward8(&w, &x8);
+            let dx8 = backward8(&w, &a8, &dy8, &mut lane_g);
+            for l in 0..LANES {
+                let a = forward(&w, &xs[l]);
+                assert!((0..HIDDEN).all(|j| a.h1[j].to_bits() == a8.h1[j][l].to_bits()));
+                assert!((0..HIDDEN).all(|j| a.h2[j].to_bits() == a8.h2[j][l].to_bits()));
+                assert!((0..OUTPUTS).all(|k| a.y[k].to_bits() == a8.y[k][l].to_bits()));
+                let dx = backward(&w, &a, dys[l], &mut g_scalar);
+                assert!((0..FEATURES).all(|i| dx[i].to_bits() == dx8[i][l].to_bits()));
+            }
+        }
+        let mut g_batched = MlpWeights::ZERO;
+        lane_g.reduce_into(&mut g_batched);
+        let (gs, gb) = (flatten(&g_scalar), flatten(&g_batched));
+        assert!(gs.iter().any(|&v| v != 0.0));
+        for (j, (a, b)) in gs.iter().zip(&gb).enumerate() {
+            assert!(
+                (a - b).abs() <= 1e-5 * (1.0 + a.abs()),
+                "param {j}: {a} vs {b}"
+            );
+        }
+        // Reducing zeroes the lanes.
+        let mut again = MlpWeights::ZERO;
+        lane_g.reduce_into(&mut again);
+        assert_eq!(again, MlpWeights::ZERO);
     }
 
     #[test]
