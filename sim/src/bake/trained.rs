@@ -186,6 +186,13 @@ impl TrainedParams {
                 sf.sub, sf.refine
             )));
         }
+        if self.geometry != GeometryKind::Planes && self.grid > nets::MAX_MESH_GRID {
+            return Err(BakeError::BadParam(format!(
+                "--grid {} is above {} for --surface mesh",
+                self.grid,
+                nets::MAX_MESH_GRID
+            )));
+        }
         if self.carve_rounds > 16 {
             return Err(BakeError::BadParam(format!(
                 "--carve-rounds {} must be at most 16 (each is a G-buffer pass)",
@@ -584,7 +591,7 @@ mod tests {
     #[test]
     fn bad_settings_name_their_flag() {
         assert!(TrainedParams::new(32, 5).validate().is_ok());
-        let bad: [Spoil; 10] = [
+        let bad: [Spoil; 11] = [
             ("--surface-keep", |p| p.surface.keep = f32::NAN),
             ("--surface-grow", |p| p.surface.grow = 2.0),
             ("--carve-rounds", |p| p.carve_rounds = 1000),
@@ -595,6 +602,10 @@ mod tests {
             ("--depth-carve-margin", |p| p.depth_carve_margin = f32::NAN),
             ("--feature-lr", |p| p.finetune.lr_features = 0.0),
             ("--feature-lr", |p| p.finetune.lr_features = f32::NAN),
+            ("--surface mesh", |p| {
+                p.geometry = GeometryKind::Mesh;
+                p.grid = 1024;
+            }),
         ];
         for (flag, spoil) in bad {
             let mut p = TrainedParams::new(32, 5);

@@ -27,6 +27,10 @@ use super::extract::{classify, object_cube, voxel_quads, Geometry, Surface, Surf
 /// No vertex in this voxel.
 const NONE: u32 = u32::MAX;
 
+/// Largest g of the mesh (its vertex index is a g³ array of `u32`: 0.5 GB
+/// at 512; the hull baker's carve stops at the same g).
+pub const MAX_MESH_GRID: u32 = 512;
+
 /// The mesh of `s` on a `g`³ grid over the object's cube, every texel of
 /// its p×p patches opaque. `refine` bisection steps find where each
 /// crossing edge enters the inside; a voxel's vertex is the mean of its
@@ -82,38 +86,44 @@ pub fn extract_nets(
     };
 
     // One vertex per voxel with a crossing edge: the mean of its crossings.
-    let verts: Vec<Option<Vec3>> = (0..gu * gu * gu)
+    // Only the voxels with a vertex are kept (a g³ array of positions
+    // would be 2 GB at g = 512): one layer of voxels per task.
+    let layers: Vec<Vec<(u32, Vec3)>> = (0..gu)
         .into_par_iter()
-        .map(|v| {
-            let (i, j, k) = (v % gu, v / gu % gu, v / (gu * gu));
-            let mut sum = Vec3::ZERO;
-            let mut count = 0u32;
-            for axis in 0..3 {
-                let (a1, a2) = ((axis + 1) % 3, (axis + 2) % 3);
-                for (o1, o2) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                    let mut c = [i, j, k];
-                    c[a1] += o1;
-                    c[a2] += o2;
-                    let mut d = c;
-                    d[axis] += 1;
-                    if at(c) != at(d) {
-                        sum += crossing(c, axis);
-                        count += 1;
+        .map(|k| {
+            let mut out = Vec::new();
+            for j in 0..gu {
+                for i in 0..gu {
+                    let mut sum = Vec3::ZERO;
+                    let mut count = 0u32;
+                    for axis in 0..3 {
+                        let (a1, a2) = ((axis + 1) % 3, (axis + 2) % 3);
+                        for (o1, o2) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                            let mut c = [i, j, k];
+                            c[a1] += o1;
+                            c[a2] += o2;
+                            let mut d = c;
+                            d[axis] += 1;
+                            if at(c) != at(d) {
+                                sum += crossing(c, axis);
+                                count += 1;
+                            }
+                        }
+                    }
+                    if count > 0 {
+                        out.push((((k * gu + j) * gu + i) as u32, sum / count as f32));
                     }
                 }
             }
-            (count > 0).then(|| sum / count as f32)
+            out
         })
         .collect();
-    let mut vid = vec![NONE; verts.len()];
+    let mut vid = vec![NONE; gu * gu * gu];
     let mut points = Vec::new();
-    for (id, v) in vid.iter_mut().zip(&verts) {
-        if let Some(x) = v {
-            *id = points.len() as u32;
-            points.push(*x);
-        }
+    for (v, x) in layers.into_iter().flatten() {
+        vid[v as usize] = points.len() as u32;
+        points.push(x);
     }
-    drop(verts);
     let shell_voxels = points.len() as u64;
     // Voxels without a crossing are wholly inside or wholly outside.
     let full_voxels = (0..gu * gu * gu)
@@ -124,7 +134,7 @@ pub fn extract_nets(
     // in corner scan order (neighbouring quads in neighbouring atlas
     // cells).
     let voxel_at = |c: [usize; 3]| vid[(c[2] * gu + c[1]) * gu + c[0]];
-    let layers: Vec<Vec<Quad>> = (0..gu)
+    let quad_layers: Vec<Vec<Quad>> = (0..gu)
         .into_par_iter()
         .map(|k| {
             let mut out = Vec::new();
@@ -179,7 +189,7 @@ pub fn extract_nets(
             out
         })
         .collect();
-    let mut quads: Vec<Quad> = layers.into_iter().flatten().collect();
+    let mut quads: Vec<Quad> = quad_layers.into_iter().flatten().collect();
     let mut opacity = vec![true; quads.len() * (p * p) as usize];
     if let Some(set) = fill {
         let grid = classify(s, &cube, gu as u32);
