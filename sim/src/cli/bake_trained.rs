@@ -60,8 +60,9 @@ pub struct TrainedArgs {
     #[arg(long, default_value_t = 0.125)]
     pub surface_grow: f32,
     /// The trained baker's quads: `planes` (per voxel, planar quads
-    /// tilted onto the surface) or `mesh` (one connected mesh,
-    /// MobileNeRF's topology).
+    /// tilted onto the surface), `mesh` (one connected mesh, MobileNeRF's
+    /// topology; g ≤ 512) or `mesh+planes` (the mesh, and planes in the
+    /// voxels a feature thinner than a voxel crosses without a vertex).
     #[arg(long = "surface", value_parser = parse_geometry, default_value = "planes")]
     pub surface_kind: GeometryKind,
     /// Keep texels outside the training views' visual hull.

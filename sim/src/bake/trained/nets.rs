@@ -258,6 +258,13 @@ mod tests {
             }
         }
         assert!(edges.values().all(|&k| k == 2), "open or non-manifold mesh");
+        // With the planes' fill (`--surface mesh+planes`) the mesh comes
+        // first, unchanged, with its texels opaque; planes follow.
+        let set = SurfaceSettings::default();
+        let filled = extract_nets(&s, g, p, 6, Some(&set)).expect("inside");
+        assert_eq!(&filled.quads[..geo.quads.len()], &geo.quads[..]);
+        assert_eq!(filled.opacity.len(), filled.quads.len() * 25);
+        assert!(filled.opacity[..geo.opacity.len()].iter().all(|&o| o));
     }
 
     /// The renderer's G-buffer and `Quad::point` agree on a strongly bent
