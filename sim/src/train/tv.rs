@@ -91,9 +91,13 @@ pub fn add_grad(values: &[f32], len: usize, nb: &Neighbours, w: TvWeights, grads
                 let Some(nbs) = nb.slots.get(s) else {
                     continue;
                 };
-                *m = true;
                 let own = &values[s * len..(s + 1) * len];
                 let g = &mut grad[o * len..(o + 1) * len];
+                if !*m {
+                    // Stale until this worker touches it (`GradBuf`).
+                    *m = true;
+                    g.fill(0.0);
+                }
                 for &t in nbs {
                     if t == EMPTY {
                         continue;
@@ -167,12 +171,19 @@ mod tests {
                 grads[s % 2].mark[s] = true;
             }
         }
+        // Stale records where the first worker's flag is clear: the TV
+        // must overwrite them, not add to them.
+        for s in 0..g.slots() {
+            if !grads[0].mark[s] {
+                grads[0].grad[s * len..(s + 1) * len].fill(7.0);
+            }
+        }
         add_grad(&g.values, len, &nb, w, &mut grads);
         for i in 0..g.values.len() {
             let s = i / len;
             let an = f64::from(grads[0].grad[i]);
             if s == 1 {
-                assert_eq!(an, 0.0);
+                assert!(!grads[0].mark[1] && !grads[1].mark[1]);
                 continue;
             }
             let h = 1e-2;
