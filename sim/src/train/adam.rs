@@ -30,7 +30,7 @@ const BLOCK: usize = 2048;
 /// prefetched: a touched slot's five lines (value, two moments, two
 /// workers' gradients) are scattered over the grid, so the pass waits on
 /// memory unless it asks early.
-const AHEAD: usize = 8;
+pub(super) const AHEAD: usize = 8;
 
 impl Adam {
     /// Zero moments for `n` floats.
@@ -153,13 +153,14 @@ impl Adam {
 
 /// Asks for the cache lines of `r` (no-op off x86-64 or for `None`).
 #[inline(always)]
-fn prefetch(r: Option<&[f32]>) {
+pub(super) fn prefetch<T>(r: Option<&[T]>) {
     #[cfg(target_arch = "x86_64")]
     if let Some(r) = r {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        for line in r.chunks(16) {
-            // SAFETY: a prefetch never faults; the pointer is in `r`.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(line.as_ptr().cast::<i8>()) };
+        let (p, bytes) = (r.as_ptr().cast::<i8>(), std::mem::size_of_val(r));
+        for off in (0..bytes).step_by(64).chain(bytes.checked_sub(1)) {
+            // SAFETY: a prefetch never faults; `p + off` lies in `r`.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.add(off)) };
         }
     }
     #[cfg(not(target_arch = "x86_64"))]

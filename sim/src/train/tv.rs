@@ -7,6 +7,7 @@
 
 use rayon::prelude::*;
 
+use super::adam::{prefetch, AHEAD};
 use super::grid::{SparseGrid, EMPTY};
 use super::march::GradBuf;
 
@@ -83,16 +84,46 @@ pub fn add_grad(values: &[f32], len: usize, nb: &Neighbours, w: TvWeights, grads
         .zip(first.mark.par_chunks_mut(BLOCK))
         .enumerate()
         .for_each(|(b, (grad, mark))| {
-            for (o, m) in mark.iter_mut().enumerate() {
+            // The block's slots some worker touched, in increasing order.
+            let mut idx = [0u16; BLOCK];
+            let mut n = 0;
+            for (o, m) in mark.iter().enumerate() {
                 let s = b * BLOCK + o;
-                if !(*m || rest.iter().any(|g| g.mark.get(s).copied().unwrap_or(false))) {
-                    continue;
+                if *m || rest.iter().any(|g| g.mark.get(s).copied().unwrap_or(false)) {
+                    if let Some(at) = idx.get_mut(n) {
+                        *at = o as u16;
+                        n += 1;
+                    }
                 }
-                let Some(nbs) = nb.slots.get(s) else {
+            }
+            let idx = &idx[..n];
+            for (k, &o) in idx.iter().enumerate() {
+                // The ±y and ±z neighbours lie far away in the slot order:
+                // ask for their records a few touched slots ahead (their
+                // indices a few more ahead).
+                if let Some(&a) = idx.get(k + 2 * AHEAD) {
+                    prefetch(nb.slots.get(b * BLOCK + a as usize).map(|x| &x[..]));
+                }
+                if let Some(nbs) = idx
+                    .get(k + AHEAD)
+                    .and_then(|&a| nb.slots.get(b * BLOCK + a as usize))
+                {
+                    for &t in &[nbs[2], nbs[3], nbs[4], nbs[5]] {
+                        if t != EMPTY {
+                            prefetch(values.get(t as usize * len..(t as usize + 1) * len));
+                        }
+                    }
+                }
+                let o = o as usize;
+                let s = b * BLOCK + o;
+                let (Some(nbs), Some(own), Some(g), Some(m)) = (
+                    nb.slots.get(s),
+                    values.get(s * len..(s + 1) * len),
+                    grad.get_mut(o * len..(o + 1) * len),
+                    mark.get_mut(o),
+                ) else {
                     continue;
                 };
-                let own = &values[s * len..(s + 1) * len];
-                let g = &mut grad[o * len..(o + 1) * len];
                 if !*m {
                     // Stale until this worker touches it (`GradBuf`).
                     *m = true;
