@@ -11,7 +11,7 @@
 
 use glam::Vec3;
 
-use super::field::RadianceField;
+use super::field::{InsideThreshold, RadianceField};
 use super::sh;
 use crate::bake::Aabb;
 
@@ -306,6 +306,35 @@ impl SparseGrid {
     }
 }
 
+impl SparseGrid {
+    /// The interpolated raw density at world point `p` (`None` outside
+    /// the grid or in a cell storing nothing): float 0 of the records
+    /// only, summed as [`SparseGrid::interpolate`] sums it, so the same
+    /// bits as its `out[0]`.
+    #[inline]
+    pub fn raw_density(&self, p: Vec3) -> Option<f32> {
+        let c = self.corners(self.to_grid(p))?;
+        let len = self.record_len();
+        let mut raw = 0.0f32;
+        for (&s, &w) in c.slot.iter().zip(&c.weight) {
+            if s == EMPTY {
+                continue;
+            }
+            raw += w * self.values[s as usize * len];
+        }
+        Some(raw)
+    }
+
+    /// σ (per world unit) of an interpolated raw density.
+    #[inline]
+    fn density_of_raw(&self, raw: f32) -> f32 {
+        if raw <= DENSITY_FLOOR {
+            return 0.0;
+        }
+        activate_density(raw).0 * self.density_scale()
+    }
+}
+
 /// Floats per (padded) record of an SH degree: 4, 16 or 32.
 #[inline]
 pub fn record_len(sh_degree: u32) -> usize {
@@ -344,16 +373,45 @@ impl RadianceField for SparseGrid {
     }
 
     fn density(&self, p: Vec3) -> f32 {
-        let Some(c) = self.corners(self.to_grid(p)) else {
-            return 0.0;
-        };
-        let mut buf = [0.0; MAX_RECORD];
-        let rec = &mut buf[..self.record_len()];
-        self.interpolate(&c, rec);
-        if rec[0] <= DENSITY_FLOOR {
-            return 0.0;
+        match self.raw_density(p) {
+            Some(raw) => self.density_of_raw(raw),
+            None => 0.0,
         }
-        activate_density(rec[0]).0 * self.density_scale()
+    }
+
+    fn inside_threshold(&self, sigma_min: f32) -> InsideThreshold {
+        // softplus(raw − SHIFT)·scale ≥ σ ⇔ raw ≥ SHIFT + ln(exp(σ/scale) − 1)
+        // in exact arithmetic; in f32 the two sides can disagree only next
+        // to that raw, so a band around it is left to the density. The
+        // band's half-width (1e-3 relative) dwarfs the activation's f32
+        // error (a few ulps, ~1e-6 relative in σ) where its slope
+        // d ln σ / d raw ≥ 1/(1 + |x|); below x = −5, `ln(1 + e)` loses
+        // digits to the rounding of 1 + e, and the density always decides.
+        let y = f64::from(sigma_min) / f64::from(self.density_scale());
+        let x = y.exp_m1().ln();
+        if !(sigma_min > 0.0 && x.is_finite() && x >= -5.0) {
+            return InsideThreshold::exact(sigma_min);
+        }
+        let raw = x + f64::from(DENSITY_SHIFT);
+        let half = 1e-3 * (1.0 + x.abs());
+        InsideThreshold {
+            sigma: sigma_min,
+            lo: (raw - half).max(f64::from(DENSITY_FLOOR)) as f32,
+            hi: (raw + half) as f32,
+        }
+    }
+
+    fn is_inside(&self, p: Vec3, t: &InsideThreshold) -> bool {
+        let Some(raw) = self.raw_density(p) else {
+            return 0.0 >= t.sigma;
+        };
+        if raw < t.lo {
+            false
+        } else if raw > t.hi {
+            true
+        } else {
+            self.density_of_raw(raw) >= t.sigma
+        }
     }
 
     fn color(&self, p: Vec3, dir: Vec3) -> Vec3 {
@@ -444,6 +502,63 @@ mod tests {
         assert!(g.corners(Vec3::splat(f32::NAN)).is_none());
         // A cell touching a stored vertex is active.
         assert!(g.corners(Vec3::splat(1.5)).is_some());
+    }
+
+    /// The fast inside test answers as `density(p) >= σ` everywhere,
+    /// thresholds that are some point's exact density included.
+    #[test]
+    fn is_inside_matches_the_density_test() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(15);
+        let cube = Aabb {
+            min: Vec3::new(-1.0, -0.5, 0.25),
+            max: Vec3::new(1.0, 1.5, 2.25),
+        };
+        let keep: Vec<bool> = (0..9 * 9 * 9).map(|_| rng.random::<f32>() < 0.8).collect();
+        let mut g = SparseGrid::new(8, cube, 1, |i, j, k| keep[((k * 9 + j) * 9 + i) as usize]);
+        for v in g.values.iter_mut() {
+            *v = rng.random_range(-3.0..12.0);
+        }
+        let point = |rng: &mut rand_chacha::ChaCha8Rng| {
+            // Some points outside the cube too.
+            cube.min + Vec3::new(rng.random(), rng.random(), rng.random()) * 2.2 - 0.1
+        };
+        let mut sigmas: Vec<f32> = [-6.0f32, -4.9, -2.0, 0.0, 1.5, 5.0, 20.0]
+            .iter()
+            .map(|&x| activate_density(x + DENSITY_SHIFT).0 * g.density_scale())
+            .collect();
+        sigmas.extend([0.0, -1.0, f32::MIN_POSITIVE]);
+        for _ in 0..20 {
+            let d = g.density(point(&mut rng));
+            sigmas.extend([d, d.next_up(), d.next_down()]);
+        }
+        let (mut fast, mut all, mut banded) = (0usize, 0usize, 0usize);
+        for &sigma in &sigmas {
+            let t = g.inside_threshold(sigma);
+            let band = t.lo.is_finite() && t.hi.is_finite();
+            banded += usize::from(band);
+            for _ in 0..20_000 {
+                let p = point(&mut rng);
+                assert_eq!(
+                    g.is_inside(p, &t),
+                    g.density(p) >= sigma,
+                    "σ {sigma} at {p}: density {}",
+                    g.density(p)
+                );
+                if let Some(raw) = g.raw_density(p).filter(|_| band) {
+                    all += 1;
+                    fast += usize::from(raw < t.lo || raw > t.hi);
+                }
+            }
+        }
+        // Most thresholds get a band, and it decides nearly every point
+        // (else nothing is gained).
+        assert!(
+            banded * 2 > sigmas.len(),
+            "{banded} of {} banded",
+            sigmas.len()
+        );
+        assert!(fast * 10 > all * 9, "{fast} of {all} decided by the band");
     }
 
     #[test]

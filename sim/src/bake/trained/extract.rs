@@ -29,7 +29,7 @@ use rayon::prelude::*;
 use super::super::carve::{ShellGrid, VoxelClass};
 use super::super::quads::{shell_quads, Quad};
 use super::super::Aabb;
-use crate::train::field::RadianceField;
+use crate::train::field::{InsideThreshold, RadianceField};
 
 /// Cells per edge of the coarse pass that finds the object's cube.
 pub const COARSE: u32 = 96;
@@ -41,6 +41,8 @@ pub struct Surface<'a> {
     pub field: &'a dyn RadianceField,
     /// Density σ (per world unit) at and above which a point is inside.
     pub sigma: f32,
+    /// `sigma` prepared for the field's inside test.
+    threshold: InsideThreshold,
 }
 
 impl<'a> Surface<'a> {
@@ -50,16 +52,18 @@ impl<'a> Surface<'a> {
         let edge = (b.max - b.min).max_element();
         let step = 0.5 * edge / field.resolution().max(1) as f32;
         let alpha = alpha.clamp(1e-4, 1.0 - 1e-4);
+        let sigma = -(1.0 - alpha).ln() / step;
         Self {
             field,
-            sigma: -(1.0 - alpha).ln() / step,
+            sigma,
+            threshold: field.inside_threshold(sigma),
         }
     }
 
-    /// Whether world point `p` is inside.
+    /// Whether world point `p` is inside: `density(p) ≥ sigma`.
     #[inline]
     pub fn inside(&self, p: Vec3) -> bool {
-        self.field.density(p) >= self.sigma
+        self.field.is_inside(p, &self.threshold)
     }
 }
 
