@@ -213,6 +213,89 @@ impl<'a> Atlas<'a> {
     }
 }
 
+/// What the rasterizer's alpha test reads of a part's atlas: the page size
+/// (texel coordinates scale with it) and which texels are empty.
+pub trait AlphaTest {
+    /// Width in texels (≥ 1).
+    fn width(&self) -> u32;
+    /// Height in texels (≥ 1).
+    fn height(&self) -> u32;
+    /// Whether texel `(x, y)` (clamped to the page) is empty: a fragment
+    /// there is discarded.
+    fn empty(&self, x: u32, y: u32) -> bool;
+}
+
+impl AlphaTest for Atlas<'_> {
+    #[inline]
+    fn width(&self) -> u32 {
+        self.width
+    }
+    #[inline]
+    fn height(&self) -> u32 {
+        self.height
+    }
+    #[inline]
+    fn empty(&self, x: u32, y: u32) -> bool {
+        self.feat0_r(x, y) == 0
+    }
+}
+
+/// An atlas page's alpha test as one bit per texel (1: `feat0.R ≠ 0`),
+/// rows of `width.div_ceil(64)` words: 1/32 of the page's feat0 bytes, so
+/// a pass that only needs coverage (a G-buffer) reads it from cache.
+#[derive(Debug, Clone, Copy)]
+pub struct AlphaBits<'a> {
+    width: u32,
+    height: u32,
+    bits: &'a [u64],
+}
+
+impl<'a> AlphaBits<'a> {
+    /// Words per row of a page `width` texels wide.
+    pub const fn row_words(width: u32) -> usize {
+        width.div_ceil(64) as usize
+    }
+
+    /// Checks the sizes (`row_words(width) · height` words).
+    pub fn new(width: u32, height: u32, bits: &'a [u64]) -> Result<Self, RasterError> {
+        let ok_side = |s: u32| (1..=MAX_SIDE).contains(&s);
+        if !ok_side(width)
+            || !ok_side(height)
+            || Self::row_words(width).checked_mul(height as usize) != Some(bits.len())
+        {
+            return Err(RasterError::BadAtlas);
+        }
+        Ok(Self {
+            width,
+            height,
+            bits,
+        })
+    }
+}
+
+impl AlphaTest for AlphaBits<'_> {
+    #[inline]
+    fn width(&self) -> u32 {
+        self.width
+    }
+    #[inline]
+    fn height(&self) -> u32 {
+        self.height
+    }
+    #[inline]
+    fn empty(&self, x: u32, y: u32) -> bool {
+        // Clamped as `Atlas::feat0_r` clamps (width, height ≥ 1).
+        let x = x.min(self.width - 1) as usize;
+        let y = y.min(self.height - 1) as usize;
+        let w = self
+            .bits
+            .get(y * Self::row_words(self.width) + x / 64)
+            .copied()
+            .unwrap_or(0);
+        (w >> (x % 64)) & 1 == 0
+    }
+}
+
 #[inline]
 fn rgba(page: &[u8], o: usize) -> [u8; 4] {
     match page.get(o..o + 4) {
@@ -665,8 +748,8 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
     }
 
     /// Rasterizes a projected quad into the G-buffer (depth + alpha test);
-    /// `atlas` is its part's atlas.
-    pub fn draw(&mut self, sq: &ScreenQuad, atlas: &Atlas) {
+    /// `atlas` is its part's atlas (or just its alpha test).
+    pub fn draw<A: AlphaTest + ?Sized>(&mut self, sq: &ScreenQuad, atlas: &A) {
         if !self.touches(sq) {
             return;
         }
@@ -685,13 +768,13 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
         }
     }
 
-    fn triangle(
+    fn triangle<A: AlphaTest + ?Sized>(
         &mut self,
         a: ScreenVertex,
         b: ScreenVertex,
         c: ScreenVertex,
         sq: &ScreenQuad,
-        atlas: &Atlas,
+        atlas: &A,
     ) {
         let mut area = edge(&a, &b, c.x, c.y);
         let (b, c) = if area < 0 {
@@ -764,7 +847,7 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
                         let t = (la * a.t_w + lb * b.t_w + lc * c.t_w) / iw;
                         let tx = texel_index(s * fw, aw);
                         let ty = texel_index(t * fh, ah);
-                        if atlas.feat0_r(tx, ty) == 0 {
+                        if atlas.empty(tx, ty) {
                             self.stats.discarded = self.stats.discarded.saturating_add(1);
                         } else {
                             self.stats.fragments = self.stats.fragments.saturating_add(1);

@@ -383,3 +383,80 @@ proptest::proptest! {
         proptest::prop_assert_eq!(got, inside);
     }
 }
+
+/// The alpha test as bits answers as the atlas does, clamping included,
+/// and a tile drawn through either holds the same samples and counters.
+#[test]
+fn alpha_bits_test_as_the_atlas_does() {
+    // Not a multiple of 64 wide, so rows end mid-word.
+    let (w, h) = (70u32, 37u32);
+    let mut seed = 0x9e37_79b9_u32;
+    let mut empty = vec![false; (w * h) as usize];
+    for e in empty.iter_mut() {
+        seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        *e = seed >> 30 == 0; // a quarter of the texels
+    }
+    let mut f0 = vec![0u8; (w * h * 4) as usize];
+    let f1 = vec![7u8; (w * h * 4) as usize];
+    let words = AlphaBits::row_words(w);
+    let mut bits = vec![0u64; words * h as usize];
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y * w + x) as usize;
+            if !empty[i] {
+                f0[i * 4] = 1 + (x % 200) as u8;
+                bits[y as usize * words + x as usize / 64] |= 1 << (x % 64);
+            }
+        }
+    }
+    let atlas = Atlas::new(w, h, &f0, &f1).unwrap();
+    let mask = AlphaBits::new(w, h, &bits).unwrap();
+    assert!(AlphaBits::new(w, h, &bits[1..]).is_err());
+    for y in 0..h + 3 {
+        for x in 0..w + 70 {
+            assert_eq!(
+                AlphaTest::empty(&mask, x, y),
+                AlphaTest::empty(&atlas, x, y),
+                "({x}, {y})"
+            );
+        }
+    }
+    // Overlapping quads at several depths, each over the whole page.
+    let v = view(Vec3::new(0.3, -4.0, 0.2), 64, 40.0);
+    let quads: Vec<Quad> = (0..6)
+        .map(|i| {
+            let d = 0.1 * i as f32;
+            let tex = |x: f32, y: f32| (0.5 + x * (w - 1) as f32, 0.5 + y * (h - 1) as f32);
+            let c = [(0.0, 0.0), (0.0, 1.0), (1.0, 0.0), (1.0, 1.0)];
+            let pos = |k: usize| {
+                let (u, t) = c[k];
+                [-1.0 + d + 1.5 * u, d - 0.3, 1.0 - d - 1.7 * t]
+            };
+            Quad::new(core::array::from_fn(|k| {
+                let (tx, ty) = tex(c[k].0, c[k].1);
+                Vertex::at_texel(pos(k), tx, ty, w, h)
+            }))
+        })
+        .collect();
+    let mut a = TileRenderer::<32, 32>::new();
+    let mut b = TileRenderer::<32, 32>::new();
+    let mut discarded = 0;
+    for (x0, y0) in [(0, 0), (32, 0), (0, 32), (32, 32)] {
+        a.begin(&v, x0, y0);
+        b.begin(&v, x0, y0);
+        for (id, q) in quads.iter().enumerate() {
+            if let Some(sq) = ScreenQuad::project(&v, q, 0, id as u32) {
+                a.draw(&sq, &atlas);
+                b.draw(&sq, &mask);
+            }
+        }
+        assert_eq!(a.stats(), b.stats());
+        discarded += a.stats().discarded;
+        for y in 0..32 {
+            for x in 0..32 {
+                assert_eq!(a.sample(x, y), b.sample(x, y));
+            }
+        }
+    }
+    assert!(discarded > 0);
+}

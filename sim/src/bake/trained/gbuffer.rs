@@ -10,7 +10,7 @@ use super::super::atlas::AtlasLayout;
 use super::super::{BakeError, BakeView};
 use crate::asset::Asset;
 use crate::render::{supersampled_view, view_of};
-use nerflex_core::raster::{Part, ScreenQuad, TileRenderer, SUPERSAMPLE};
+use nerflex_core::raster::{AlphaBits, Part, ScreenQuad, TileRenderer, SUPERSAMPLE};
 
 /// Tile side of the G-buffer pass (as the host renderer's).
 const TILE: usize = 32;
@@ -80,6 +80,23 @@ pub fn rasterize(
             mlp: asset.mlp.fixed(),
         })
         .collect();
+    // The alpha test as bits: the only atlas read of this pass, per
+    // fragment; the bits stay in cache where the RGBA pages do not.
+    let bits: Vec<Vec<u64>> = asset
+        .shapes
+        .par_iter()
+        .map(|s| alpha_bits(s.atlas.feat0()))
+        .collect();
+    let masks = asset
+        .shapes
+        .iter()
+        .zip(&bits)
+        .map(|(s, b)| {
+            let (w, h) = s.atlas.feat0().dimensions();
+            AlphaBits::new(w, h, b)
+                .map_err(|e| BakeError::BadParam(format!("G-buffer alpha bits: {e:?}")))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     let p = layout.patch;
     type ViewPixels = (Vec<GPixel>, Vec<Subsamples>, Vec<u32>);
     let per: Vec<Result<ViewPixels, BakeError>> = views
@@ -127,8 +144,8 @@ pub fn rasterize(
                 tile.begin(&view, bx * t, by * t);
                 for &i in bin {
                     let sq = &projected[i as usize];
-                    if let Some(part) = parts.get(sq.part as usize) {
-                        tile.draw(sq, &part.atlas);
+                    if let Some(mask) = masks.get(sq.part as usize) {
+                        tile.draw(sq, mask);
                     }
                 }
                 let (x0, y0, w, h) = tile.rect();
@@ -198,6 +215,23 @@ pub fn rasterize(
         g.background.extend(bg);
     }
     Ok(g)
+}
+
+/// One bit per texel of `feat0`, set where its R is not 0 (rows of
+/// [`AlphaBits::row_words`] words).
+fn alpha_bits(feat0: &image::RgbaImage) -> Vec<u64> {
+    let (w, h) = feat0.dimensions();
+    let words = AlphaBits::row_words(w);
+    let mut bits = vec![0u64; words * h as usize];
+    let row_bytes = w as usize * 4;
+    bits.par_chunks_mut(words.max(1))
+        .zip(feat0.as_raw().par_chunks(row_bytes.max(1)))
+        .for_each(|(out, row)| {
+            for (x, px) in row.chunks_exact(4).enumerate() {
+                out[x / 64] |= u64::from(px[0] != 0) << (x % 64);
+            }
+        });
+    bits
 }
 
 impl GBuffers {
