@@ -281,32 +281,9 @@ impl BakedObject {
     /// the (large) pages move instead of being copied.
     pub fn into_asset(self) -> Result<Asset, AssetError> {
         let layout = &self.atlas.layout;
-        let last = (self.params.patch - 1) as f32;
-        // Corner texel offsets in export order (see `quads::Quad`).
-        let tex = [(0.0, 0.0), (0.0, last), (last, 0.0), (last, last)];
         let mut shapes = Vec::with_capacity(self.atlas.pages.len());
         for (i, page) in self.atlas.pages.into_iter().enumerate() {
-            let pl = layout.pages[i];
-            let (w, h) = layout.page_size(i);
-            let quads = (pl.first_quad..pl.first_quad + pl.quads)
-                .map(|qi| {
-                    let cell = layout.cell(qi).ok_or_else(|| {
-                        AssetError::Invalid(format!("quad {qi} has no atlas cell"))
-                    })?;
-                    let corners = self.quads[qi].corners();
-                    let v = |k: usize| {
-                        let (tx, ty) = tex[k];
-                        Vertex::at_texel(
-                            corners[k].to_array(),
-                            cell.x as f32 + tx + 0.5,
-                            cell.y as f32 + ty + 0.5,
-                            w,
-                            h,
-                        )
-                    };
-                    Ok(RasterQuad::new([v(0), v(1), v(2), v(3)]))
-                })
-                .collect::<Result<Vec<_>, AssetError>>()?;
+            let quads = page_quads(&self.quads, layout, self.params.patch, i)?;
             shapes.push(Shape {
                 index: i,
                 quads,
@@ -324,6 +301,43 @@ impl BakedObject {
             file_bytes: 0,
         })
     }
+}
+
+/// The renderer's quads of atlas page `page` of `layout` at patch `patch`,
+/// `quads` in atlas order: each corner at its cell's corner texel centre.
+pub fn page_quads(
+    quads: &[quads::Quad],
+    layout: &atlas::AtlasLayout,
+    patch: u32,
+    page: usize,
+) -> Result<Vec<RasterQuad>, AssetError> {
+    let last = (patch - 1) as f32;
+    // Corner texel offsets in export order (see `quads::Quad`).
+    let tex = [(0.0, 0.0), (0.0, last), (last, 0.0), (last, last)];
+    let pl = layout.pages[page];
+    let (w, h) = layout.page_size(page);
+    (pl.first_quad..pl.first_quad + pl.quads)
+        .map(|qi| {
+            let cell = layout
+                .cell(qi)
+                .ok_or_else(|| AssetError::Invalid(format!("quad {qi} has no atlas cell")))?;
+            let corners = quads
+                .get(qi)
+                .ok_or_else(|| AssetError::Invalid(format!("quad {qi} is missing")))?
+                .corners();
+            let v = |k: usize| {
+                let (tx, ty) = tex[k];
+                Vertex::at_texel(
+                    corners[k].to_array(),
+                    cell.x as f32 + tx + 0.5,
+                    cell.y as f32 + ty + 0.5,
+                    w,
+                    h,
+                )
+            };
+            Ok(RasterQuad::new([v(0), v(1), v(2), v(3)]))
+        })
+        .collect()
 }
 
 /// Bytes the files of `asset` take in the export layout: exactly what

@@ -10,7 +10,7 @@ use super::super::atlas::AtlasLayout;
 use super::super::{BakeError, BakeView};
 use crate::asset::Asset;
 use crate::render::{supersampled_view, view_of};
-use nerflex_core::raster::{AlphaBits, Part, ScreenQuad, TileRenderer, SUPERSAMPLE};
+use nerflex_core::raster::{AlphaBits, Quad as RasterQuad, ScreenQuad, TileRenderer, SUPERSAMPLE};
 
 /// Tile side of the G-buffer pass (as the host renderer's).
 const TILE: usize = 32;
@@ -71,29 +71,35 @@ pub fn rasterize(
     views: &[BakeView<'_>],
     supersample: bool,
 ) -> Result<GBuffers, BakeError> {
-    let parts: Vec<Part<'_>> = asset
-        .shapes
-        .iter()
-        .map(|s| Part {
-            quads: &s.quads,
-            atlas: s.atlas.atlas(),
-            mlp: asset.mlp.fixed(),
-        })
-        .collect();
-    // The alpha test as bits: the only atlas read of this pass, per
-    // fragment; the bits stay in cache where the RGBA pages do not.
-    let bits: Vec<Vec<u64>> = asset
+    let pages: Vec<AlphaPage> = asset
         .shapes
         .par_iter()
-        .map(|s| alpha_bits(s.atlas.feat0()))
-        .collect();
-    let masks = asset
-        .shapes
-        .iter()
-        .zip(&bits)
-        .map(|(s, b)| {
+        .map(|s| {
             let (w, h) = s.atlas.feat0().dimensions();
-            AlphaBits::new(w, h, b)
+            (w, h, alpha_bits(s.atlas.feat0()))
+        })
+        .collect();
+    let quads: Vec<&[RasterQuad]> = asset.shapes.iter().map(|s| &s.quads[..]).collect();
+    rasterize_bits(&quads, &pages, layout, views, supersample)
+}
+
+/// An atlas page's alpha test: width, height and [`AlphaBits`]' words.
+type AlphaPage = (u32, u32, Vec<u64>);
+
+/// [`rasterize`] of the pages' quads (`quads[i]` on page `i`) through their
+/// alpha bits: the only atlas read of this pass, per fragment, and the bits
+/// stay in cache where RGBA pages do not.
+fn rasterize_bits(
+    quads: &[&[RasterQuad]],
+    pages: &[AlphaPage],
+    layout: &AtlasLayout,
+    views: &[BakeView<'_>],
+    supersample: bool,
+) -> Result<GBuffers, BakeError> {
+    let masks = pages
+        .iter()
+        .map(|(w, h, b)| {
+            AlphaBits::new(*w, *h, b)
                 .map_err(|e| BakeError::BadParam(format!("G-buffer alpha bits: {e:?}")))
         })
         .collect::<Result<Vec<_>, _>>()?;
@@ -113,8 +119,8 @@ pub fn rasterize(
             let ss = if supersample { SUPERSAMPLE } else { 1 };
             let mut id = 0u32;
             let mut projected = Vec::new();
-            for (pi, part) in parts.iter().enumerate() {
-                for q in part.quads {
+            for (pi, part) in quads.iter().enumerate() {
+                for q in part.iter() {
                     if let Some(sq) = ScreenQuad::project(&view, q, pi as u16, id) {
                         projected.push(sq);
                     }
@@ -281,26 +287,56 @@ pub fn of_geometry(
     views: &[BakeView<'_>],
     supersample: bool,
 ) -> Result<GBuffers, BakeError> {
-    use super::super::{BakeParams, BakeStats, BakedObject};
     let layout = AtlasLayout::new(geo.quads.len(), p);
-    let mask: Vec<[u8; 8]> = geo
-        .opacity
-        .iter()
-        .map(|&o| [u8::from(o), 0, 0, 0, 0, 0, 0, 0])
-        .collect();
-    // The grid size only labels the asset; the quads carry the geometry.
-    let asset = BakedObject {
-        params: BakeParams::new(2, p),
-        cube: geo.cube,
-        quads: geo.quads.clone(),
-        atlas: super::export::atlas(&layout, &mask),
-        mlp: nerflex_core::shader::MlpWeights::ZERO,
-        stats: BakeStats::default(),
-    }
-    .into_asset()
-    .map_err(|e| BakeError::BadParam(format!("building the G-buffers' asset failed: {e}")))?;
-    drop(mask);
-    rasterize(&asset, &layout, views, supersample)
+    // The pages' quads and alpha bits straight from the geometry: what the
+    // export of an atlas carrying only the opacity would give, without
+    // its RGBA pages.
+    let (quads, pages): (Vec<Vec<RasterQuad>>, Vec<AlphaPage>) = (0..layout.pages.len())
+        .into_par_iter()
+        .map(|i| {
+            let quads = super::super::page_quads(&geo.quads, &layout, p, i).map_err(|e| {
+                BakeError::BadParam(format!("building the G-buffers' quads failed: {e}"))
+            })?;
+            let (w, h) = layout.page_size(i);
+            Ok((quads, (w, h, opacity_bits(&layout, i, &geo.opacity))))
+        })
+        .collect::<Result<Vec<_>, BakeError>>()?
+        .into_iter()
+        .unzip();
+    let quads: Vec<&[RasterQuad]> = quads.iter().map(Vec::as_slice).collect();
+    rasterize_bits(&quads, &pages, &layout, views, supersample)
+}
+
+/// The alpha bits of page `page` of `layout` whose texels' opacity is
+/// `opacity` (p² per quad, row-major in its cell, as `export::atlas` lays
+/// texels out).
+fn opacity_bits(layout: &AtlasLayout, page: usize, opacity: &[bool]) -> Vec<u64> {
+    let p = layout.patch as usize;
+    let pl = layout.pages[page];
+    let (w, h) = layout.page_size(page);
+    let words = AlphaBits::row_words(w);
+    let mut bits = vec![0u64; words * h as usize];
+    // One row of cells (p texel rows) at a time.
+    bits.par_chunks_mut((words * p).max(1))
+        .enumerate()
+        .for_each(|(row, out)| {
+            for col in 0..pl.cols as usize {
+                let local = row * pl.cols as usize + col;
+                if local >= pl.quads {
+                    break;
+                }
+                let q = pl.first_quad + local;
+                for ty in 0..p {
+                    for tx in 0..p {
+                        if opacity.get(q * p * p + ty * p + tx) == Some(&true) {
+                            let x = col * p + tx;
+                            out[ty * words + x / 64] |= 1 << (x % 64);
+                        }
+                    }
+                }
+            }
+        });
+    bits
 }
 
 /// How well a geometry's texel points carry the training images, before
@@ -480,4 +516,35 @@ pub fn probe(
         by_depth_psnr: std::array::from_fn(|k| psnr(acc.depth_se[k], acc.depth_n[k])),
         median_psnr: psnr(acc.median_se, acc.depth_n.iter().sum()),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// The bits built from the opacity are those of the exported atlas'
+    /// feat0 pages, and the quads those of the asset.
+    #[test]
+    fn opacity_bits_are_the_exported_atlas_bits() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        for (n, p) in [(1usize, 2u32), (37, 5), (150, 17)] {
+            let layout = AtlasLayout::new(n, p);
+            let opacity: Vec<bool> = (0..n * (p * p) as usize)
+                .map(|_| rng.random::<f32>() < 0.3)
+                .collect();
+            let mask: Vec<[u8; 8]> = opacity
+                .iter()
+                .map(|&o| [u8::from(o), 0, 0, 0, 0, 0, 0, 0])
+                .collect();
+            let atlas = super::super::export::atlas(&layout, &mask);
+            for (i, page) in atlas.pages.iter().enumerate() {
+                assert_eq!(
+                    opacity_bits(&layout, i, &opacity),
+                    alpha_bits(&page.feat0),
+                    "n {n} p {p} page {i}"
+                );
+            }
+        }
+    }
 }
