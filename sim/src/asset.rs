@@ -427,31 +427,39 @@ impl Asset {
 
     /// Writes the files into the existing folder `dir` (no staging).
     fn write_into(&self, dir: &Path) -> Result<u64, AssetError> {
-        let mut bytes = 0u64;
+        use rayon::prelude::*;
         let json = mlp_json::to_string(self.mlp.weights(), self.obj_num);
-        bytes += write_atomic(&dir.join("mlp.json"), json.as_bytes())?;
-        for s in &self.shapes {
-            let [o, p0, p1] = shape_files(s.index).map(|n| dir.join(n));
-            let text = obj::to_string(&s.quads);
-            let (e0, e1) = rayon::join(
-                || png_io::encode_rgba8(s.atlas.feat0()),
-                || png_io::encode_rgba8(s.atlas.feat1()),
-            );
-            bytes += write_atomic(&o, text.as_bytes())?;
-            bytes += write_atomic(
-                &p0,
-                &e0.map_err(|msg| AssetError::Png {
-                    path: p0.clone(),
-                    msg,
-                })?,
-            )?;
-            bytes += write_atomic(
-                &p1,
-                &e1.map_err(|msg| AssetError::Png {
-                    path: p1.clone(),
-                    msg,
-                })?,
-            )?;
+        let mut bytes = write_atomic(&dir.join("mlp.json"), json.as_bytes())?;
+        // Every file of every shape is encoded and written as its own task,
+        // PNGs first (the longest: each one deflate stream on one core), so
+        // both cores stay busy to the end rather than pairing a page's two
+        // PNGs and writing each shape's OBJ on one core.
+        let tasks: Vec<(&Shape, usize)> = (0..3)
+            .rev()
+            .flat_map(|k| self.shapes.iter().map(move |s| (s, k)))
+            .collect();
+        let written: Vec<Result<u64, AssetError>> = tasks
+            .par_iter()
+            .with_max_len(1)
+            .map(|&(s, k)| {
+                let path = dir.join(&shape_files(s.index)[k]);
+                let data = match k {
+                    0 => obj::to_string(&s.quads).into_bytes(),
+                    _ => png_io::encode_rgba8(if k == 1 {
+                        s.atlas.feat0()
+                    } else {
+                        s.atlas.feat1()
+                    })
+                    .map_err(|msg| AssetError::Png {
+                        path: path.clone(),
+                        msg,
+                    })?,
+                };
+                write_atomic(&path, &data)
+            })
+            .collect();
+        for w in written {
+            bytes += w?;
         }
         Ok(bytes)
     }
