@@ -251,6 +251,10 @@ pub fn bake(
         "trained: {} opaque texels, {} shown by a training pixel; feature lattice {}³ cells, {} vertices, {} reached; {} training pixels; MLP's initial fit: MSE {:.5}",
         s.opaque_texels, s.trained_texels, s.lattice_res, s.lattice_vertices, s.reached_vertices, s.train_pixels, s.fit_mse
     );
+    println!(
+        "trained: {} covered training pixels show a quad from behind",
+        s.backface_pixels
+    );
     if args.depth_carve > 0 {
         println!(
             "trained: depth carve: {} training pixels reached their texel in front of the field's median depth, {} texels emptied",
