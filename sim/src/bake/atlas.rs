@@ -30,6 +30,19 @@ pub struct PageLayout {
     pub rows: u32,
 }
 
+impl PageLayout {
+    /// The quads (global indices) in row `row` of cells, with their
+    /// column: how a pass that fills a page one row of cells at a time
+    /// walks it.
+    pub fn row_quads(&self, row: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
+        let cols = self.cols as usize;
+        (0..cols)
+            .map(move |col| (col, row * cols + col))
+            .take_while(|&(_, local)| local < self.quads)
+            .map(|(col, local)| (col, self.first_quad + local))
+    }
+}
+
 /// The cell layout of every quad.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct AtlasLayout {

@@ -414,12 +414,8 @@ pub fn write_atlas(
             .par_chunks_mut(row_bytes)
             .enumerate()
             .for_each(|(row, buf)| {
-                for col in 0..pl.cols as usize {
-                    let local = row * pl.cols as usize + col;
-                    if local >= pl.quads {
-                        break;
-                    }
-                    let base = (pl.first_quad + local) * p * p;
+                for (col, q) in pl.row_quads(row) {
+                    let base = q * p * p;
                     for ty in 0..p {
                         for tx in 0..p {
                             let t = base + ty * p + tx;

@@ -27,12 +27,7 @@ pub fn atlas(layout: &AtlasLayout, texels: &[[u8; 8]]) -> Atlas {
                     .par_chunks_mut(row_bytes)
                     .enumerate()
                     .for_each(|(row, buf)| {
-                        for col in 0..pl.cols as usize {
-                            let local = row * pl.cols as usize + col;
-                            if local >= pl.quads {
-                                break;
-                            }
-                            let q = pl.first_quad + local;
+                        for (col, q) in pl.row_quads(row) {
                             for ty in 0..p {
                                 for tx in 0..p {
                                     let Some(b) = texels.get(q * p * p + ty * p + tx) else {

@@ -320,12 +320,7 @@ fn opacity_bits(layout: &AtlasLayout, page: usize, opacity: &[bool]) -> Vec<u64>
     bits.par_chunks_mut((words * p).max(1))
         .enumerate()
         .for_each(|(row, out)| {
-            for col in 0..pl.cols as usize {
-                let local = row * pl.cols as usize + col;
-                if local >= pl.quads {
-                    break;
-                }
-                let q = pl.first_quad + local;
+            for (col, q) in pl.row_quads(row) {
                 for ty in 0..p {
                     for tx in 0..p {
                         if opacity.get(q * p * p + ty * p + tx) == Some(&true) {
