@@ -285,7 +285,7 @@ pub struct TrainedStats {
     /// Training pixels the geometry covers.
     pub train_pixels: u64,
     /// Covered training pixels that show a quad from behind (a geometry
-    /// measure: about 1 % on lego's mesh, 17–20 % on its planes;
+    /// measure: 1–2 % on lego's mesh, 17–20 % on its planes;
     /// `docs/baking.md`, "Session 14").
     pub backface_pixels: u64,
     /// Mean squared error (per channel, [0, 1] units) of the MLP's initial
