@@ -180,6 +180,12 @@ impl TrainedParams {
                 sf.grow
             )));
         }
+        if !(sf.depth > 0.0 && sf.depth < 1.0) {
+            return Err(BakeError::BadParam(format!(
+                "--surface-depth {} must be in (0, 1)",
+                sf.depth
+            )));
+        }
         if !(1..=63).contains(&sf.sub) || sf.refine > 30 {
             return Err(BakeError::BadParam(format!(
                 "surface sub-lattice {} must be in 1..=63 and refine {} at most 30",
@@ -627,9 +633,11 @@ mod tests {
     #[test]
     fn bad_settings_name_their_flag() {
         assert!(TrainedParams::new(32, 5).validate().is_ok());
-        let bad: [Spoil; 11] = [
+        let bad: [Spoil; 13] = [
             ("--surface-keep", |p| p.surface.keep = f32::NAN),
             ("--surface-grow", |p| p.surface.grow = 2.0),
+            ("--surface-depth", |p| p.surface.depth = 1.0),
+            ("--surface-depth", |p| p.surface.depth = f32::NAN),
             ("--carve-rounds", |p| p.carve_rounds = 1000),
             ("--feature-res", |p| p.feature_res = 1),
             ("--epochs", |p| p.finetune.epochs = f32::INFINITY),

@@ -59,6 +59,11 @@ pub struct TrainedArgs {
     /// Quads overlap their neighbours by this fraction of a voxel.
     #[arg(long, default_value_t = 0.125)]
     pub surface_grow: f32,
+    /// A plane sits where the field's opacity, accumulated inward from the
+    /// surface's entry, reaches this value (0.5: the volume renderer's
+    /// median depth; the default 0.2 scores best, docs/baking.md).
+    #[arg(long, default_value_t = 0.2)]
+    pub surface_depth: f32,
     /// The trained baker's quads: `planes` (per voxel, planar quads
     /// tilted onto the surface), `mesh` (one connected mesh, MobileNeRF's
     /// topology; g ≤ 512) or `mesh+planes` (the mesh, and planes in the
@@ -145,6 +150,7 @@ impl TrainedArgs {
         p.geometry = self.surface_kind;
         p.surface.keep = self.surface_keep;
         p.surface.grow = self.surface_grow;
+        p.surface.depth = self.surface_depth;
         p
     }
 }
