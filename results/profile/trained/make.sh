@@ -2,6 +2,7 @@
 # Regenerates results/profile/trained/ from the trained baker's samples:
 #   results/bake/trained/samples.csv            lego + chair at 800 × 800 (90 training views),
 #                                               g {16…256} × p {5…17}, `nerflex bake --sweep --field …`
+#   results/bake/trained/samples-mesh.csv       the same sweep with `--surface mesh` (session 15)
 #   results/bake/trained/samples-eval-paper.csv the paper-scale evaluation's profiler samples
 #                                               (Scenes 1–4 + real, 9 per network, from results/eval/eval.json)
 # Usage: results/profile/trained/make.sh [path/to/nerflex]
@@ -10,6 +11,7 @@ cd "$(dirname "$0")/../../.."
 N=${1:-target/release/nerflex}
 S=results/bake/trained/samples.csv
 E=results/bake/trained/samples-eval-paper.csv
+M=results/bake/trained/samples-mesh.csv
 O=results/profile/trained
 "$N" profile fit --samples $S --out $O/profiles.json > /dev/null
 "$N" profile fit --samples $E --out $O/profiles-eval-paper.json > /dev/null
@@ -17,3 +19,7 @@ O=results/profile/trained
 "$N" profile accuracy --samples $S --train-on variable-step --json $O/accuracy_variable_step.json > $O/accuracy_variable_step.txt
 "$N" profile accuracy --samples $S --train-on variable-step --max-size-mb 100 > $O/accuracy_variable_step_le100mb.txt
 "$N" profile accuracy --samples $E --json $O/accuracy_eval_loo.json > $O/accuracy_eval_loo.txt
+mkdir -p $O/mesh
+"$N" profile fit --samples $M --out $O/mesh/profiles.json > /dev/null
+"$N" profile accuracy --samples $M --json $O/mesh/accuracy_loo.json --plots $O/mesh/curves > $O/mesh/accuracy_loo.txt
+"$N" profile accuracy --samples $M --train-on variable-step --json $O/mesh/accuracy_variable_step.json > $O/mesh/accuracy_variable_step.txt
