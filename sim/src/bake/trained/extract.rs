@@ -220,9 +220,10 @@ pub struct SurfaceSettings {
     /// A plane sits where the opacity accumulated inward from its lattice
     /// lines' entries reaches this value, in (0, 1). ½ is a volume
     /// renderer's expected surface; 0.2 scores best on lego and chair
-    /// (docs/baking.md, "Session 15"): a grazing ray meets the field's
-    /// soft shell before its median, so a plane nearer the entry keeps
-    /// silhouettes and thin parts.
+    /// (docs/baking.md, "Session 15"): an underside the field never saw
+    /// has a long soft march, and nearer its entry its plane no longer
+    /// lands on or above the seen side (lego's pixels that see a plane
+    /// from behind halve).
     pub depth: f32,
 }
 
