@@ -673,6 +673,10 @@ impl TileStats {
     }
 }
 
+/// A peeled fragment's `1/w` must be below this fraction of the front
+/// sample's (depth more than 10⁻⁵ relatively behind it).
+const PEEL_MARGIN: f32 = 1.0 - 1e-5;
+
 /// The per-tile G-buffer and rasterizer; `W × H` pixels, no heap
 /// (`16·W·H` bytes: 16 KiB for 32 × 32).
 #[derive(Debug, Clone)]
@@ -750,6 +754,23 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
     /// Rasterizes a projected quad into the G-buffer (depth + alpha test);
     /// `atlas` is its part's atlas (or just its alpha test).
     pub fn draw<A: AlphaTest + ?Sized>(&mut self, sq: &ScreenQuad, atlas: &A) {
+        self.draw_over(sq, atlas, None);
+    }
+
+    /// [`TileRenderer::draw`] of the second layer (depth peeling): only
+    /// fragments strictly behind what `front` (the same tile, drawn with
+    /// the same quads) shows at their pixel, and not of that quad, pass.
+    /// What a pixel shows once its front texel is made transparent.
+    pub fn draw_behind<A: AlphaTest + ?Sized>(&mut self, sq: &ScreenQuad, atlas: &A, front: &Self) {
+        self.draw_over(sq, atlas, Some(&front.g));
+    }
+
+    fn draw_over<A: AlphaTest + ?Sized>(
+        &mut self,
+        sq: &ScreenQuad,
+        atlas: &A,
+        front: Option<&[[GPixel; W]; H]>,
+    ) {
         if !self.touches(sq) {
             return;
         }
@@ -764,7 +785,7 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
                 continue;
             }
             let [a, b, c] = tri.map(|i| sq.v.get(i).copied().unwrap_or_default());
-            self.triangle(a, b, c, sq, atlas);
+            self.triangle(a, b, c, sq, atlas, front);
         }
     }
 
@@ -775,6 +796,7 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
         c: ScreenVertex,
         sq: &ScreenQuad,
         atlas: &A,
+        front: Option<&[[GPixel; W]; H]>,
     ) {
         let mut area = edge(&a, &b, c.x, c.y);
         let (b, c) = if area < 0 {
@@ -831,8 +853,10 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
             ) else {
                 continue;
             };
-            let row = self.g.get_mut((py - self.y0 as i64) as usize);
+            let ry = (py - self.y0 as i64) as usize;
+            let row = self.g.get_mut(ry);
             let Some(row) = row else { return };
+            let front_row = front.and_then(|f| f.get(ry));
             for k in k0..=k1 {
                 let px = px0 + k;
                 let (la, lb, lc) = (
@@ -841,7 +865,16 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
                     (e_ab - k * d_ab) as f32 * inv_area,
                 );
                 let iw = la * a.inv_w + lb * b.inv_w + lc * c.inv_w;
-                if let Some(g) = row.get_mut((px - self.x0 as i64) as usize) {
+                let rx = (px - self.x0 as i64) as usize;
+                if let Some(fr) = front_row {
+                    // Peeling: strictly behind the front sample (a relative
+                    // margin, so the front quad's own depth never passes).
+                    let Some(f) = fr.get(rx) else { continue };
+                    if f.inv_w <= 0.0 || f.quad == sq.id || iw >= f.inv_w * PEEL_MARGIN {
+                        continue;
+                    }
+                }
+                if let Some(g) = row.get_mut(rx) {
                     if iw > g.inv_w {
                         let s = (la * a.s_w + lb * b.s_w + lc * c.s_w) / iw;
                         let t = (la * a.t_w + lb * b.t_w + lc * c.t_w) / iw;

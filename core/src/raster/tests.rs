@@ -460,3 +460,55 @@ fn alpha_bits_test_as_the_atlas_does() {
     }
     assert!(discarded > 0);
 }
+
+#[test]
+fn peeling_shows_what_lies_behind_the_front_sample() {
+    let v = view(Vec3::new(0.0, -4.0, 0.0), 32, 40.0);
+    let (f0, f1) = atlas_pages(8, |_, _| false);
+    let a = Atlas::new(8, 8, &f0, &f1).unwrap();
+    // Three parallel quads, drawn in a scrambled order: near, middle, far.
+    let ys = [0.0f32, -0.5, 0.5];
+    let sq: Vec<ScreenQuad> = ys
+        .iter()
+        .enumerate()
+        .map(|(i, &y)| {
+            ScreenQuad::project(&v, &quad(y, -1.0, 1.0, -1.0, 1.0, 8), i as u16, i as u32).unwrap()
+        })
+        .collect();
+    let mut front = TileRenderer::<32, 32>::new();
+    let mut behind = TileRenderer::<32, 32>::new();
+    front.begin(&v, 0, 0);
+    behind.begin(&v, 0, 0);
+    for q in &sq {
+        front.draw(q, &a);
+    }
+    for q in &sq {
+        behind.draw_behind(q, &a, &front);
+    }
+    let (x, y) = (16, 16);
+    assert_eq!(
+        front.sample(x, y).unwrap().quad,
+        1,
+        "the near quad in front"
+    );
+    assert_eq!(
+        behind.sample(x, y).unwrap().quad,
+        0,
+        "the middle one behind it"
+    );
+    // Where nothing is in front, nothing is behind either.
+    assert!(front.sample(0, 0).is_none() && behind.sample(0, 0).is_none());
+    // Peeling the peeled layer reaches the far quad, then nothing.
+    let mut third = TileRenderer::<32, 32>::new();
+    third.begin(&v, 0, 0);
+    for q in &sq {
+        third.draw_behind(q, &a, &behind);
+    }
+    assert_eq!(third.sample(x, y).unwrap().quad, 2);
+    let mut fourth = TileRenderer::<32, 32>::new();
+    fourth.begin(&v, 0, 0);
+    for q in &sq {
+        fourth.draw_behind(q, &a, &third);
+    }
+    assert!(fourth.sample(x, y).is_none());
+}

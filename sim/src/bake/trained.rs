@@ -35,9 +35,10 @@ pub mod gbuffer;
 pub mod init;
 pub mod net;
 pub mod nets;
+pub mod visibility;
 
 use glam::Vec3;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use super::atlas::AtlasLayout;
 use super::{BakeError, BakeParams, BakeStats, BakeView, BakedObject, StageTimes};
@@ -131,8 +132,11 @@ pub struct TrainedParams {
     pub fit_samples: usize,
     /// The MLP's initial fit.
     pub fit: FitSettings,
-    /// The fine-tune.
+    /// The fine-tune (its epochs split evenly over the visibility
+    /// rounds' fine-tunes).
     pub finetune: FinetuneSettings,
+    /// Texel opacity judged against the photos ([`visibility`]).
+    pub visibility: visibility::VisibilitySettings,
 }
 
 impl TrainedParams {
@@ -155,6 +159,7 @@ impl TrainedParams {
             fit_samples: 65_536,
             fit: FitSettings::default(),
             finetune: FinetuneSettings::default(),
+            visibility: visibility::VisibilitySettings::default(),
         }
     }
 
@@ -235,6 +240,20 @@ impl TrainedParams {
                 self.depth_carve_margin
             )));
         }
+        let v = &self.visibility;
+        if v.rounds > visibility::MAX_ROUNDS {
+            return Err(BakeError::BadParam(format!(
+                "--visibility-rounds {} must be at most {} (each rasterizes every training view twice more)",
+                v.rounds,
+                visibility::MAX_ROUNDS
+            )));
+        }
+        if !(v.margin.is_finite() && v.margin >= 0.0) {
+            return Err(BakeError::BadParam(format!(
+                "--visibility-margin {} must be a finite number ≥ 0",
+                v.margin
+            )));
+        }
         let lr = self.finetune.lr_features;
         if !(lr.is_finite() && lr > 0.0 && lr <= 1.0) {
             return Err(BakeError::BadParam(format!(
@@ -254,8 +273,11 @@ pub struct TrainedTimes {
     pub gbuffer_s: f64,
     /// The feature lattice, its initial values and the MLP's fit.
     pub init_s: f64,
-    /// The fine-tune.
+    /// The fine-tune (all rounds).
     pub finetune_s: f64,
+    /// The visibility rounds' peels, judgements and G-buffers
+    /// ([`visibility`]).
+    pub visibility_s: f64,
     /// Atlas pages.
     pub atlas_s: f64,
 }
@@ -299,6 +321,9 @@ pub struct TrainedStats {
     pub fit_mse: f32,
     /// The fine-tune.
     pub finetune: FinetuneReport,
+    /// The visibility rounds (texels removed summed over rounds; the
+    /// pixels and texels judged are the last round's).
+    pub visibility: visibility::VisibilityReport,
     /// Stage timings.
     pub times: TrainedTimes,
 }
@@ -334,6 +359,33 @@ pub fn auto_feature_res(cube: &super::Aabb, views: &[BakeView<'_>]) -> u32 {
     let mid = px.len() / 2;
     let (_, m, _) = px.select_nth_unstable_by(mid, f32::total_cmp);
     ((*m / 2.0).round() as u32).clamp(4, 512)
+}
+
+/// The quads of `geo` some pixel of `gb` shows, their opacity, and each
+/// quad's new index (`u32::MAX`: dropped).
+fn keep_shown(
+    geo: &extract::Geometry,
+    gb: &gbuffer::GBuffers,
+    p2: usize,
+) -> (Vec<super::quads::Quad>, Vec<bool>, Vec<u32>) {
+    let nq = geo.quads.len();
+    let mut hits = vec![0u32; nq];
+    for i in 0..gb.pixels.len() {
+        for &t in gb.shown(i) {
+            hits[t as usize / p2] += 1;
+        }
+    }
+    let mut new_index = vec![u32::MAX; nq];
+    let mut quads = Vec::new();
+    let mut opacity = Vec::new();
+    for q in 0..nq {
+        if hits[q] > 0 {
+            new_index[q] = quads.len() as u32;
+            quads.push(geo.quads[q]);
+            opacity.extend_from_slice(&geo.opacity[q * p2..(q + 1) * p2]);
+        }
+    }
+    (quads, opacity, new_index)
 }
 
 /// Whether a pixel looking along `dir` sees quad `q` from behind (its
@@ -425,112 +477,173 @@ pub fn bake(
         (gb, depth::DepthReport::default())
     };
 
-    // Keep the quads some training pixel shows.
+    // Rounds of: keep the shown quads, build the training pixels, fit and
+    // fine-tune; then (but the last) judge each shown texel against what
+    // lies behind it and rasterize again ([`visibility`]).
+    let rounds = params.visibility.rounds;
+    let mut gb = gb;
+    let mut grid: Option<featgrid::FeatureGrid> = None;
+    let mut mlp = nerflex_core::shader::MlpWeights::ZERO;
+    let mut fit_mse = 0.0;
+    let mut reached = 0;
+    let mut report = finetune::FinetuneReport::default();
+    let mut visibility = visibility::VisibilityReport::default();
     let nq = geo.quads.len();
-    let mut hits = vec![0u32; nq];
-    for i in 0..gb.pixels.len() {
-        for &t in gb.shown(i) {
-            hits[t as usize / p2] += 1;
+    let (mut t2, mut t3) = (t1, t1);
+    let mut tune = Duration::ZERO;
+    let mut pixels;
+    let mut backface_pixels;
+    let mut trained_texels;
+    let mut round = 0;
+    loop {
+        // Keep the quads some training pixel shows.
+        let (quads, opacity, new_index) = keep_shown(&geo, &gb, p2);
+        if round == 0 {
+            t2 = Instant::now();
         }
-    }
-    let mut new_index = vec![u32::MAX; nq];
-    let mut quads = Vec::new();
-    let mut opacity = Vec::new();
-    for q in 0..nq {
-        if hits[q] > 0 {
-            new_index[q] = quads.len() as u32;
-            quads.push(geo.quads[q]);
-            opacity.extend_from_slice(&geo.opacity[q * p2..(q + 1) * p2]);
-        }
-    }
-    let t2 = Instant::now();
+        geo.quads = quads;
+        geo.opacity = opacity;
+        let texel_point = |t: usize| geo.texel_point(p, t as u32);
+        // The feature lattice around every opaque texel's point, built once:
+        // later rounds only make texels transparent.
+        let grid = grid.get_or_insert_with(|| {
+            use rayon::prelude::*;
+            let points: Vec<Vec3> = geo
+                .opacity
+                .par_iter()
+                .enumerate()
+                .filter(|(_, &o)| o)
+                .map(|(t, _)| texel_point(t))
+                .collect();
+            let res = match params.feature_res {
+                0 => auto_feature_res(&geo.cube, views),
+                r => r,
+            };
+            featgrid::FeatureGrid::new(&geo.cube, res, &points)
+        });
 
-    // The feature lattice around every opaque texel's point.
+        // One entry per texel a pixel shows: how it reads the lattice.
+        let mut slot_of = vec![u32::MAX; geo.opacity.len()];
+        let mut slot_texel: Vec<u32> = Vec::new();
+        let mut slot = |texel: u32| -> u32 {
+            let q = new_index[texel as usize / p2] as usize;
+            let t = q * p2 + texel as usize % p2;
+            if slot_of[t] == u32::MAX {
+                slot_of[t] = slot_texel.len() as u32;
+                slot_texel.push(t as u32);
+            }
+            slot_of[t]
+        };
+        pixels = finetune::TrainPixels::default();
+        backface_pixels = 0u64;
+        for (i, px) in gb.pixels.iter().enumerate() {
+            let q = &geo.quads[new_index[px.texel as usize / p2] as usize];
+            backface_pixels += u64::from(from_behind(q, px.dir));
+            pixels.pixels.push(finetune::TrainPixel {
+                slot: slot(px.texel),
+                dir: px.dir,
+                target: px.target,
+            });
+            if let Some(s) = gb.subsamples.get(i) {
+                pixels
+                    .subsamples
+                    .push(s.map(|t| if t == gbuffer::NO_TEXEL { t } else { slot(t) }));
+            }
+        }
+        drop(gb);
+        drop(slot_of);
+        drop(new_index);
+        trained_texels = slot_texel.len() as u64;
+        let taps: Vec<featgrid::Taps> = {
+            use rayon::prelude::*;
+            slot_texel
+                .par_iter()
+                .map(|&t| grid.taps(texel_point(t as usize)))
+                .collect::<Option<_>>()
+                .ok_or_else(|| {
+                    BakeError::BadParam("a shown texel lies outside the feature lattice".into())
+                })?
+        };
+        if round == 0 {
+            let (values, r) = init::splat(grid, &pixels, &taps, field);
+            reached = r;
+            grid.values = values;
+            let stride = (pixels.len() / params.fit_samples.max(1)).max(1);
+            let samples: Vec<init::FitSample> = {
+                use rayon::prelude::*;
+                (0..pixels.len())
+                    .into_par_iter()
+                    .step_by(stride)
+                    .map(|i| pixels.get(i))
+                    .filter(|px| px.full())
+                    .map(|px| init::FitSample {
+                        feat: px.features(&taps, &grid.values),
+                        dir: px.dir,
+                        target: px.target,
+                    })
+                    .collect()
+            };
+            (mlp, fit_mse) = init::fit_mlp(&samples, &params.fit);
+            drop(samples);
+            t3 = Instant::now();
+        }
+
+        // The fine-tune's epochs split over the rounds.
+        let mut settings = params.finetune;
+        settings.epochs /= (rounds + 1) as f32;
+        let ft0 = Instant::now();
+        let r = finetune::finetune(&pixels, &taps, &mut grid.values, &mut mlp, &settings);
+        tune += ft0.elapsed();
+        report = if round == 0 {
+            r
+        } else {
+            finetune::FinetuneReport {
+                steps: report.steps + r.steps,
+                pixel_steps: report.pixel_steps + r.pixel_steps,
+                psnr_after: r.psnr_after,
+                seconds: report.seconds + r.seconds,
+                ..report
+            }
+        };
+        drop(taps);
+        if round == rounds {
+            break;
+        }
+        round += 1;
+        let v0 = Instant::now();
+        let peeled = visibility::peel(&geo, p, views, params.supersample)?;
+        let v1 = Instant::now();
+        let r = visibility::prune(
+            &mut geo,
+            p,
+            &peeled.pixels,
+            grid,
+            &mlp,
+            params.supersample,
+            &params.visibility,
+        );
+        // The next G-buffers from the two layers: no third pass.
+        let (next, lost) = peeled.gbuffers(&geo.opacity, params.supersample);
+        drop(peeled);
+        gb = next;
+        visibility = visibility::VisibilityReport {
+            pixels: r.pixels,
+            shown_texels: r.shown_texels,
+            removed_texels: visibility.removed_texels + r.removed_texels,
+            error_before: r.error_before,
+            error_change: visibility.error_change + r.error_change,
+            lost_subsamples: visibility.lost_subsamples + lost,
+            peel_s: visibility.peel_s + (v1 - v0).as_secs_f64(),
+            judge_s: visibility.judge_s + v1.elapsed().as_secs_f64(),
+        };
+    }
+    let t4 = Instant::now();
+    let grid = grid.ok_or(BakeError::Empty)?;
+    let (quads, opacity) = (geo.quads, geo.opacity);
     let texel_point = |t: usize| {
         let (q, i) = (t / p2, (t % p2) as u32);
         extract::texel_point(&quads[q], p, i % p, i / p)
     };
-    let points: Vec<Vec3> = {
-        use rayon::prelude::*;
-        opacity
-            .par_iter()
-            .enumerate()
-            .filter(|(_, &o)| o)
-            .map(|(t, _)| texel_point(t))
-            .collect()
-    };
-    let res = match params.feature_res {
-        0 => auto_feature_res(&geo.cube, views),
-        r => r,
-    };
-    let mut grid = featgrid::FeatureGrid::new(&geo.cube, res, &points);
-    drop(points);
-
-    // One entry per texel a pixel shows: how it reads the lattice.
-    let mut slot_of = vec![u32::MAX; opacity.len()];
-    let mut slot_texel: Vec<u32> = Vec::new();
-    let mut slot = |texel: u32| -> u32 {
-        let q = new_index[texel as usize / p2] as usize;
-        let t = q * p2 + texel as usize % p2;
-        if slot_of[t] == u32::MAX {
-            slot_of[t] = slot_texel.len() as u32;
-            slot_texel.push(t as u32);
-        }
-        slot_of[t]
-    };
-    let mut pixels = finetune::TrainPixels::default();
-    let mut backface_pixels = 0u64;
-    for (i, px) in gb.pixels.iter().enumerate() {
-        let q = &quads[new_index[px.texel as usize / p2] as usize];
-        backface_pixels += u64::from(from_behind(q, px.dir));
-        pixels.pixels.push(finetune::TrainPixel {
-            slot: slot(px.texel),
-            dir: px.dir,
-            target: px.target,
-        });
-        if let Some(s) = gb.subsamples.get(i) {
-            pixels
-                .subsamples
-                .push(s.map(|t| if t == gbuffer::NO_TEXEL { t } else { slot(t) }));
-        }
-    }
-    drop(gb);
-    drop(slot_of);
-    drop(new_index);
-    let taps: Vec<featgrid::Taps> = {
-        use rayon::prelude::*;
-        slot_texel
-            .par_iter()
-            .map(|&t| grid.taps(texel_point(t as usize)))
-            .collect::<Option<_>>()
-            .ok_or_else(|| {
-                BakeError::BadParam("a shown texel lies outside the feature lattice".into())
-            })?
-    };
-    let (values, reached) = init::splat(&grid, &pixels, &taps, field);
-    grid.values = values;
-    let stride = (pixels.len() / params.fit_samples.max(1)).max(1);
-    let samples: Vec<init::FitSample> = {
-        use rayon::prelude::*;
-        (0..pixels.len())
-            .into_par_iter()
-            .step_by(stride)
-            .map(|i| pixels.get(i))
-            .filter(|px| px.full())
-            .map(|px| init::FitSample {
-                feat: px.features(&taps, &grid.values),
-                dir: px.dir,
-                target: px.target,
-            })
-            .collect()
-    };
-    let (mut mlp, fit_mse) = init::fit_mlp(&samples, &params.fit);
-    drop(samples);
-    let t3 = Instant::now();
-
-    let report = finetune::finetune(&pixels, &taps, &mut grid.values, &mut mlp, &params.finetune);
-    drop(taps);
-    let t4 = Instant::now();
 
     // Every opaque texel reads the lattice at its point.
     let texels: Vec<[u8; 8]> = {
@@ -556,7 +669,8 @@ pub fn bake(
         extract_s: (t1 - t0).as_secs_f64(),
         gbuffer_s: (t2 - t1).as_secs_f64(),
         init_s: (t3 - t2).as_secs_f64(),
-        finetune_s: (t4 - t3).as_secs_f64(),
+        finetune_s: tune.as_secs_f64(),
+        visibility_s: ((t4 - t3).saturating_sub(tune)).as_secs_f64(),
         atlas_s: (t5 - t4).as_secs_f64(),
     };
     let stats = TrainedStats {
@@ -568,14 +682,15 @@ pub fn bake(
         depth: depth_report,
         kept_quads: quads.len() as u64,
         opaque_texels: opaque,
-        trained_texels: slot_texel.len() as u64,
-        lattice_res: res,
+        trained_texels,
+        lattice_res: grid.res(),
         lattice_vertices: grid.len() as u64,
         reached_vertices: reached as u64,
         train_pixels: pixels.len() as u64,
         backface_pixels,
         fit_mse,
         finetune: report,
+        visibility,
         times,
     };
     let baked = BakedObject {
@@ -633,7 +748,7 @@ mod tests {
     #[test]
     fn bad_settings_name_their_flag() {
         assert!(TrainedParams::new(32, 5).validate().is_ok());
-        let bad: [Spoil; 13] = [
+        let bad: [Spoil; 16] = [
             ("--surface-keep", |p| p.surface.keep = f32::NAN),
             ("--surface-grow", |p| p.surface.grow = 2.0),
             ("--surface-depth", |p| p.surface.depth = 1.0),
@@ -646,6 +761,9 @@ mod tests {
             ("--depth-carve-margin", |p| p.depth_carve_margin = f32::NAN),
             ("--feature-lr", |p| p.finetune.lr_features = 0.0),
             ("--feature-lr", |p| p.finetune.lr_features = f32::NAN),
+            ("--visibility-rounds", |p| p.visibility.rounds = 100),
+            ("--visibility-margin", |p| p.visibility.margin = -0.5),
+            ("--visibility-margin", |p| p.visibility.margin = f32::NAN),
             ("--surface mesh", |p| {
                 p.geometry = GeometryKind::Mesh;
                 p.grid = 1024;

@@ -64,6 +64,17 @@ pub struct TrainedArgs {
     /// median depth; the default 0.2 scores best, docs/baking.md).
     #[arg(long, default_value_t = 0.2)]
     pub surface_depth: f32,
+    /// Rounds of texel opacity learnt from the photos: after a fine-tune,
+    /// every shown texel whose removal lowers its pixels' error (what lies
+    /// behind it shows instead) is made transparent, then the views are
+    /// rasterized and fine-tuned again; `--epochs` is split over the
+    /// rounds' fine-tunes.
+    #[arg(long, default_value_t = 0)]
+    pub visibility_rounds: u32,
+    /// A texel goes when its removal lowers its pixels' summed squared
+    /// error (RGB in [0, 1]) by more than this.
+    #[arg(long, default_value_t = 0.0)]
+    pub visibility_margin: f32,
     /// The trained baker's quads: `planes` (per voxel, planar quads
     /// tilted onto the surface), `mesh` (one connected mesh, MobileNeRF's
     /// topology; g ≤ 512) or `mesh+planes` (the mesh, and planes in the
@@ -151,6 +162,8 @@ impl TrainedArgs {
         p.surface.keep = self.surface_keep;
         p.surface.grow = self.surface_grow;
         p.surface.depth = self.surface_depth;
+        p.visibility.rounds = self.visibility_rounds;
+        p.visibility.margin = self.visibility_margin;
         p
     }
 }
@@ -273,13 +286,20 @@ pub fn bake(
             s.depth.moved, s.depth.mean_shift, s.depth.crossings
         );
     }
+    if args.visibility_rounds > 0 {
+        let v = &s.visibility;
+        println!(
+            "trained: visibility: {} texels made transparent (estimated error change {:.1} of {:.1}); last round judged {} texels over {} pixels; {} subsamples lost both layers; peel {:.2} s, judge {:.2} s",
+            v.removed_texels, v.error_change, v.error_before, v.shown_texels, v.pixels, v.lost_subsamples, v.peel_s, v.judge_s
+        );
+    }
     println!(
         "trained: fine-tune {} steps, {} pixel steps, training PSNR {:.2} → {:.2} dB",
         s.finetune.steps, s.finetune.pixel_steps, s.finetune.psnr_before, s.finetune.psnr_after
     );
     println!(
-        "trained: time extract {:.2} s, G-buffers {:.2} s, init {:.2} s, fine-tune {:.2} s, atlas {:.2} s",
-        t.extract_s, t.gbuffer_s, t.init_s, t.finetune_s, t.atlas_s
+        "trained: time extract {:.2} s, G-buffers {:.2} s, init {:.2} s, fine-tune {:.2} s, visibility {:.2} s, atlas {:.2} s",
+        t.extract_s, t.gbuffer_s, t.init_s, t.finetune_s, t.visibility_s, t.atlas_s
     );
     Ok(tb.baked)
 }

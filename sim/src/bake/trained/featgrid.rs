@@ -124,6 +124,11 @@ impl FeatureGrid {
         self.coords.len()
     }
 
+    /// Cells per edge.
+    pub fn res(&self) -> u32 {
+        self.res
+    }
+
     /// Whether the grid has no vertex.
     pub fn is_empty(&self) -> bool {
         self.coords.is_empty()

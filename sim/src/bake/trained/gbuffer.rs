@@ -13,7 +13,7 @@ use crate::render::{supersampled_view, view_of};
 use nerflex_core::raster::{AlphaBits, Quad as RasterQuad, ScreenQuad, TileRenderer, SUPERSAMPLE};
 
 /// Tile side of the G-buffer pass (as the host renderer's).
-const TILE: usize = 32;
+pub(super) const TILE: usize = 32;
 
 /// Subsamples of a pixel ([`nerflex_core::raster::SUPERSAMPLE`]²).
 pub const SUBSAMPLES: usize = 4;
@@ -84,7 +84,7 @@ pub fn rasterize(
 }
 
 /// An atlas page's alpha test: width, height and [`AlphaBits`]' words.
-type AlphaPage = (u32, u32, Vec<u64>);
+pub(super) type AlphaPage = (u32, u32, Vec<u64>);
 
 /// [`rasterize`] of the pages' quads (`quads[i]` on page `i`) through their
 /// alpha bits: the only atlas read of this pass, per fragment, and the bits
@@ -103,7 +103,6 @@ fn rasterize_bits(
                 .map_err(|e| BakeError::BadParam(format!("G-buffer alpha bits: {e:?}")))
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let p = layout.patch;
     type ViewPixels = (Vec<GPixel>, Vec<Subsamples>, Vec<u32>);
     let per: Vec<Result<ViewPixels, BakeError>> = views
         .par_iter()
@@ -117,27 +116,12 @@ fn rasterize_bits(
                 out_view
             };
             let ss = if supersample { SUPERSAMPLE } else { 1 };
-            let mut id = 0u32;
-            let mut projected = Vec::new();
-            for (pi, part) in quads.iter().enumerate() {
-                for q in part.iter() {
-                    if let Some(sq) = ScreenQuad::project(&view, q, pi as u16, id) {
-                        projected.push(sq);
-                    }
-                    id += 1;
-                }
-            }
+            let Binned {
+                projected,
+                bins,
+                tx,
+            } = bin(quads, &view);
             let t = TILE as u32;
-            let (tx, ty) = (view.width().div_ceil(t), view.height().div_ceil(t));
-            let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tx * ty) as usize];
-            for (i, sq) in projected.iter().enumerate() {
-                let [x0, y0, x1, y1] = sq.bbox;
-                for by in y0 / t..=y1 / t {
-                    for bx in x0 / t..=x1 / t {
-                        bins[(by * tx + bx) as usize].push(i as u32);
-                    }
-                }
-            }
             let mut tile = Box::new(TileRenderer::<TILE, TILE>::new());
             let mut out = Vec::new();
             let mut background = Vec::new();
@@ -160,18 +144,9 @@ fn rasterize_bits(
                         let mut texels = [NO_TEXEL; SUBSAMPLES];
                         let mut n = 0usize;
                         for i in 0..ss * ss {
-                            let Some(s) = tile.sample(ox * ss + i % ss, oy * ss + i / ss) else {
-                                continue;
-                            };
-                            let Some(cell) = layout.cell(s.quad as usize) else {
-                                continue;
-                            };
-                            let (lx, ly) = (
-                                u32::from(s.texel[0]).wrapping_sub(cell.x),
-                                u32::from(s.texel[1]).wrapping_sub(cell.y),
-                            );
-                            if lx < p && ly < p && n < SUBSAMPLES {
-                                texels[n] = s.quad * p * p + ly * p + lx;
+                            let s = texel_at(&tile, layout, ox * ss + i % ss, oy * ss + i / ss);
+                            if let (Some(t), true) = (s, n < SUBSAMPLES) {
+                                texels[n] = t;
                                 n += 1;
                             }
                         }
@@ -221,6 +196,64 @@ fn rasterize_bits(
         g.background.extend(bg);
     }
     Ok(g)
+}
+
+/// A view's projected quads (ids: their index over all pages, in page
+/// order) and, per [`TILE`]-sized tile, the ones whose box touches it.
+pub(super) struct Binned {
+    pub projected: Vec<ScreenQuad>,
+    pub bins: Vec<Vec<u32>>,
+    /// Tiles per row.
+    pub tx: u32,
+}
+
+/// Projects `quads` (`quads[i]` on page `i`) into `view` and bins them.
+pub(super) fn bin(quads: &[&[RasterQuad]], view: &nerflex_core::raster::View) -> Binned {
+    let mut id = 0u32;
+    let mut projected = Vec::new();
+    for (pi, part) in quads.iter().enumerate() {
+        for q in part.iter() {
+            if let Some(sq) = ScreenQuad::project(view, q, pi as u16, id) {
+                projected.push(sq);
+            }
+            id += 1;
+        }
+    }
+    let t = TILE as u32;
+    let (tx, ty) = (view.width().div_ceil(t), view.height().div_ceil(t));
+    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tx * ty) as usize];
+    for (i, sq) in projected.iter().enumerate() {
+        let [x0, y0, x1, y1] = sq.bbox;
+        for by in y0 / t..=y1 / t {
+            for bx in x0 / t..=x1 / t {
+                bins[(by * tx + bx) as usize].push(i as u32);
+            }
+        }
+    }
+    Binned {
+        projected,
+        bins,
+        tx,
+    }
+}
+
+/// The texel (`quad · p² + y · p + x`) tile-local sample `(x, y)` of
+/// `tile` shows, if covered.
+#[inline]
+pub(super) fn texel_at(
+    tile: &TileRenderer<TILE, TILE>,
+    layout: &AtlasLayout,
+    x: u32,
+    y: u32,
+) -> Option<u32> {
+    let p = layout.patch;
+    let s = tile.sample(x, y)?;
+    let cell = layout.cell(s.quad as usize)?;
+    let (lx, ly) = (
+        u32::from(s.texel[0]).wrapping_sub(cell.x),
+        u32::from(s.texel[1]).wrapping_sub(cell.y),
+    );
+    (lx < p && ly < p).then(|| s.quad * p * p + ly * p + lx)
 }
 
 /// One bit per texel of `feat0`, set where its R is not 0 (rows of
@@ -287,10 +320,19 @@ pub fn of_geometry(
     views: &[BakeView<'_>],
     supersample: bool,
 ) -> Result<GBuffers, BakeError> {
+    let (layout, quads, pages) = pages_of(geo, p)?;
+    let quads: Vec<&[RasterQuad]> = quads.iter().map(Vec::as_slice).collect();
+    rasterize_bits(&quads, &pages, &layout, views, supersample)
+}
+
+/// `geo`'s atlas layout at patch `p`, its pages' quads and alpha bits.
+pub(super) type GeometryPages = (AtlasLayout, Vec<Vec<RasterQuad>>, Vec<AlphaPage>);
+
+/// The pages' quads and alpha bits straight from the geometry: what the
+/// export of an atlas carrying only the opacity would give, without its
+/// RGBA pages.
+pub(super) fn pages_of(geo: &super::extract::Geometry, p: u32) -> Result<GeometryPages, BakeError> {
     let layout = AtlasLayout::new(geo.quads.len(), p);
-    // The pages' quads and alpha bits straight from the geometry: what the
-    // export of an atlas carrying only the opacity would give, without
-    // its RGBA pages.
     let (quads, pages): (Vec<Vec<RasterQuad>>, Vec<AlphaPage>) = (0..layout.pages.len())
         .into_par_iter()
         .map(|i| {
@@ -303,8 +345,7 @@ pub fn of_geometry(
         .collect::<Result<Vec<_>, BakeError>>()?
         .into_iter()
         .unzip();
-    let quads: Vec<&[RasterQuad]> = quads.iter().map(Vec::as_slice).collect();
-    rasterize_bits(&quads, &pages, &layout, views, supersample)
+    Ok((layout, quads, pages))
 }
 
 /// The alpha bits of page `page` of `layout` whose texels' opacity is

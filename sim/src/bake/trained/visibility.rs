@@ -1,0 +1,546 @@
+//! Texel opacity learnt from the photos: each opaque texel the training
+//! views see first is kept only if the pixels that show it match their
+//! photo better with it than with what lies behind it.
+//!
+//! MobileNeRF learns texel opacity by soft compositing every quad along a
+//! ray, then binarises it. Our opacity starts binary (the field's surface),
+//! so the same question is asked discretely: with the fine-tuned lattice
+//! and MLP, every covered pixel of every training view is shaded twice per
+//! texel it shows, as it is and with that texel transparent (the second
+//! layer of a depth-peeled G-buffer, or the white background), and each
+//! texel sums the change in squared error over its pixels. Texels whose
+//! removal lowers the error are removed. Each texel is judged with every
+//! other texel in place, so a round is exact only to first order; the
+//! bake re-rasterizes and fine-tunes after each round.
+
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU32, Ordering};
+
+use super::super::{BakeError, BakeView};
+use super::extract::Geometry;
+use super::featgrid::FeatureGrid;
+use super::gbuffer::{self, Subsamples, NO_TEXEL, SUBSAMPLES, TILE};
+use super::net::{self, FEATURES};
+use crate::render::{supersampled_view, view_of};
+use nerflex_core::raster::{AlphaBits, TileRenderer, SUPERSAMPLE};
+use nerflex_core::shader::MlpWeights;
+
+/// One covered pixel of a training view, with two layers: per subsample
+/// position (not compacted), the texel it shows and the texel behind that
+/// one ([`NO_TEXEL`] where none).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PeelPixel {
+    /// The texels shown.
+    pub front: Subsamples,
+    /// The texels behind them.
+    pub behind: Subsamples,
+    /// The view direction the renderer feeds the MLP here.
+    pub dir: [f32; 3],
+    /// The training image here composited over white, in [0, 1].
+    pub target: [f32; 3],
+    /// The photo's object coverage here (0–255): under 128 the pixel is
+    /// background, a vote and no target for the fine-tune.
+    pub cov: u8,
+}
+
+/// The two-layer G-buffers of every training view.
+#[derive(Debug, Clone, Default)]
+pub struct Peel {
+    /// Covered pixels, view after view.
+    pub pixels: Vec<PeelPixel>,
+    /// Covered pixels per view.
+    pub per_view: Vec<usize>,
+}
+
+/// The most visibility rounds a bake takes.
+pub const MAX_ROUNDS: u32 = 8;
+
+/// Settings of the visibility rounds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VisibilitySettings {
+    /// Rounds of (peel, decide, re-rasterize, fine-tune); 0 = off.
+    pub rounds: u32,
+    /// A texel goes when its removal lowers the summed squared error (RGB
+    /// in [0, 1]) of its pixels by more than this.
+    pub margin: f32,
+}
+
+impl Default for VisibilitySettings {
+    fn default() -> Self {
+        Self {
+            rounds: 0,
+            margin: 0.0,
+        }
+    }
+}
+
+/// What a round did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct VisibilityReport {
+    /// Covered pixels judged (training views, background included).
+    pub pixels: u64,
+    /// Distinct texels some pixel shows first.
+    pub shown_texels: u64,
+    /// Texels made transparent.
+    pub removed_texels: u64,
+    /// Summed squared error of the judged pixels before, and the sum of
+    /// the removed texels' (negative) changes: a first-order estimate.
+    pub error_before: f64,
+    /// …
+    pub error_change: f64,
+    /// Subsamples whose front texel and the one behind it both went: the
+    /// next fine-tune counts them uncovered ([`Peel::gbuffers`]).
+    pub lost_subsamples: u64,
+    /// Wall time of the two-layer rasterizations, seconds.
+    pub peel_s: f64,
+    /// … of the judgements and the next G-buffers.
+    pub judge_s: f64,
+}
+
+/// The two-layer G-buffers of `geo` at patch `p` on `views` (2 × 2
+/// subsamples when `supersample`), every covered pixel of the object
+/// (pixels another object covers are skipped), view after view.
+pub fn peel(
+    geo: &Geometry,
+    p: u32,
+    views: &[BakeView<'_>],
+    supersample: bool,
+) -> Result<Peel, BakeError> {
+    let (layout, quads, pages) = gbuffer::pages_of(geo, p)?;
+    let quads: Vec<&[_]> = quads.iter().map(Vec::as_slice).collect();
+    let masks = pages
+        .iter()
+        .map(|(w, h, b)| {
+            AlphaBits::new(*w, *h, b)
+                .map_err(|e| BakeError::BadParam(format!("peel alpha bits: {e:?}")))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let per: Vec<Result<Vec<PeelPixel>, BakeError>> = views
+        .par_iter()
+        .enumerate()
+        .map(|(vi, v)| {
+            let bad = |e| BakeError::BadViews(format!("view {vi}: {e:?}"));
+            let out_view = view_of(&v.camera).map_err(bad)?;
+            let view = if supersample {
+                supersampled_view(&v.camera).map_err(bad)?
+            } else {
+                out_view
+            };
+            let ss = if supersample { SUPERSAMPLE } else { 1 };
+            let binned = gbuffer::bin(&quads, &view);
+            let t = TILE as u32;
+            let mut front = Box::new(TileRenderer::<TILE, TILE>::new());
+            let mut back = Box::new(TileRenderer::<TILE, TILE>::new());
+            let mut out = Vec::new();
+            for (b, bin) in binned.bins.iter().enumerate() {
+                if bin.is_empty() {
+                    continue;
+                }
+                let (bx, by) = (b as u32 % binned.tx, b as u32 / binned.tx);
+                front.begin(&view, bx * t, by * t);
+                back.begin(&view, bx * t, by * t);
+                for &i in bin {
+                    let sq = &binned.projected[i as usize];
+                    if let Some(mask) = masks.get(sq.part as usize) {
+                        front.draw(sq, mask);
+                    }
+                }
+                for &i in bin {
+                    let sq = &binned.projected[i as usize];
+                    if let Some(mask) = masks.get(sq.part as usize) {
+                        back.draw_behind(sq, mask, &front);
+                    }
+                }
+                let (x0, y0, w, h) = front.rect();
+                for oy in 0..h / ss {
+                    for ox in 0..w / ss {
+                        let mut px_front = [NO_TEXEL; SUBSAMPLES];
+                        let mut px_back = [NO_TEXEL; SUBSAMPLES];
+                        for i in 0..(ss * ss) as usize {
+                            let (sx, sy) = (ox * ss + i as u32 % ss, oy * ss + i as u32 / ss);
+                            if let Some(t) = gbuffer::texel_at(&front, &layout, sx, sy) {
+                                px_front[i] = t;
+                                px_back[i] =
+                                    gbuffer::texel_at(&back, &layout, sx, sy).unwrap_or(NO_TEXEL);
+                            }
+                        }
+                        if px_front.iter().all(|&t| t == NO_TEXEL) {
+                            continue;
+                        }
+                        let (x, y) = (x0 / ss + ox, y0 / ss + oy);
+                        if let super::super::Silhouette::Instance { mask, label } = v.silhouette {
+                            let m = mask.get_pixel(x, y).0[0];
+                            if m != 0 && m != label {
+                                continue;
+                            }
+                        }
+                        let cov = v.coverage(x, y);
+                        let a = f32::from(cov) / 255.0;
+                        let px = v.image.get_pixel(x, y).0;
+                        let c = |k: usize| f32::from(px[k]) / 255.0 * a + (1.0 - a);
+                        out.push(PeelPixel {
+                            front: px_front,
+                            behind: px_back,
+                            dir: out_view.pixel_dir_f32(x, y),
+                            target: [c(0), c(1), c(2)],
+                            cov,
+                        });
+                    }
+                }
+            }
+            Ok(out)
+        })
+        .collect();
+    let mut all = Peel::default();
+    for r in per {
+        let r = r?;
+        all.per_view.push(r.len());
+        all.pixels.extend(r);
+    }
+    Ok(all)
+}
+
+impl Peel {
+    /// The G-buffers once the texels `opacity` marks transparent are gone:
+    /// where a subsample's front texel went, the texel behind it shows
+    /// (exact while that one stays; where both went the subsample counts
+    /// as uncovered, as the layer behind both is not kept). Returns them
+    /// and the number of such subsamples.
+    pub fn gbuffers(&self, opacity: &[bool], supersample: bool) -> (gbuffer::GBuffers, u64) {
+        let opaque = |t: u32| opacity.get(t as usize) == Some(&true);
+        let mut g = gbuffer::GBuffers::default();
+        let mut lost = 0u64;
+        let mut at = 0;
+        for &n in &self.per_view {
+            let mut count = 0;
+            for px in &self.pixels[at..at + n] {
+                let mut shown = [NO_TEXEL; SUBSAMPLES];
+                let mut k = 0;
+                for (&f, &b) in px.front.iter().zip(&px.behind) {
+                    let t = if opaque(f) {
+                        f
+                    } else if f == NO_TEXEL {
+                        continue;
+                    } else if opaque(b) {
+                        b
+                    } else if b == NO_TEXEL {
+                        // Nothing behind: the background shows.
+                        continue;
+                    } else {
+                        lost += 1;
+                        continue;
+                    };
+                    shown[k] = t;
+                    k += 1;
+                }
+                if k == 0 {
+                    continue;
+                }
+                if px.cov < 128 {
+                    g.background.extend_from_slice(&shown[..k]);
+                    continue;
+                }
+                g.pixels.push(gbuffer::GPixel {
+                    texel: shown[0],
+                    dir: px.dir,
+                    target: px.target,
+                });
+                if supersample {
+                    g.subsamples.push(shown);
+                }
+                count += 1;
+            }
+            g.per_view.push(count);
+            at += n;
+        }
+        (g, lost)
+    }
+}
+
+/// The 8-bit features of every opaque texel of `geo` (the lattice read at
+/// its point, as the atlas will store it); zeros elsewhere.
+fn texel_bytes(geo: &Geometry, p: u32, grid: &FeatureGrid) -> Vec<[u8; FEATURES]> {
+    geo.opacity
+        .par_iter()
+        .enumerate()
+        .map(|(t, &o)| {
+            let Some(tp) = o.then(|| grid.taps(geo.texel_point(p, t as u32))).flatten() else {
+                return [0; FEATURES];
+            };
+            let f = tp.gather(&grid.values);
+            std::array::from_fn(|c| net::encode(c, f[c], true))
+        })
+        .collect()
+}
+
+/// Squared error (RGB in [0, 1], summed over channels) of a pixel showing
+/// `texels` (per subsample position, [`NO_TEXEL`] uncovered), shaded as the
+/// renderer does: the byte mean of the covered texels' features, the MLP,
+/// its 8-bit output blended over white by coverage.
+fn pixel_error(
+    texels: &Subsamples,
+    samples: usize,
+    bytes: &[[u8; FEATURES]],
+    mlp: &MlpWeights,
+    dir: [f32; 3],
+    target: [f32; 3],
+) -> f32 {
+    let mut sum = [0u32; FEATURES];
+    let mut n = 0u32;
+    for &t in texels.iter().take(samples) {
+        if let Some(b) = bytes.get(t as usize) {
+            for (s, &v) in sum.iter_mut().zip(b) {
+                *s += u32::from(v);
+            }
+            n += 1;
+        }
+    }
+    let colour = if n == 0 {
+        [1.0; 3]
+    } else {
+        // The rounded byte mean, as `nerflex_core::raster::mean_texel`.
+        let f: [f32; FEATURES] =
+            std::array::from_fn(|c| net::decode(c, ((sum[c] + n / 2) / n) as u8));
+        let y = net::to_u8(net::forward(mlp, &net::input(&f, dir)).y);
+        let cov = n as f32 / samples as f32;
+        y.map(|v| f32::from(v) / 255.0 * cov + (1.0 - cov))
+    };
+    (0..3).map(|k| (colour[k] - target[k]).powi(2)).sum()
+}
+
+/// One round: judges every texel `pixels` show first and makes the ones
+/// whose removal lowers their pixels' error transparent in `geo`.
+pub fn prune(
+    geo: &mut Geometry,
+    p: u32,
+    pixels: &[PeelPixel],
+    grid: &FeatureGrid,
+    mlp: &MlpWeights,
+    supersample: bool,
+    settings: &VisibilitySettings,
+) -> VisibilityReport {
+    let samples = if supersample { SUBSAMPLES } else { 1 };
+    let bytes = texel_bytes(geo, p, grid);
+    // Per texel: the summed change of squared error (f32 bits) and a
+    // "shown" flag.
+    let delta: Vec<AtomicU32> = (0..geo.opacity.len()).map(|_| AtomicU32::new(0)).collect();
+    let shown: Vec<AtomicU32> = (0..geo.opacity.len()).map(|_| AtomicU32::new(0)).collect();
+    let add = |t: u32, d: f32| {
+        let Some(a) = delta.get(t as usize) else {
+            return;
+        };
+        let _ = a.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |v| {
+            Some((f32::from_bits(v) + d).to_bits())
+        });
+        if let Some(s) = shown.get(t as usize) {
+            s.store(1, Ordering::Relaxed);
+        }
+    };
+    let before: f64 = pixels
+        .par_iter()
+        .map(|px| {
+            let e0 = pixel_error(&px.front, samples, &bytes, mlp, px.dir, px.target);
+            let mut done = [NO_TEXEL; SUBSAMPLES];
+            for (k, &t) in px.front.iter().take(samples).enumerate() {
+                if t == NO_TEXEL || done.contains(&t) {
+                    continue;
+                }
+                done[k] = t;
+                let mut without = px.front;
+                for (w, &b) in without.iter_mut().zip(&px.behind) {
+                    if *w == t {
+                        *w = b;
+                    }
+                }
+                let e1 = pixel_error(&without, samples, &bytes, mlp, px.dir, px.target);
+                add(t, e1 - e0);
+            }
+            f64::from(e0)
+        })
+        .sum();
+    let mut report = VisibilityReport {
+        pixels: pixels.len() as u64,
+        error_before: before,
+        ..Default::default()
+    };
+    for (t, (d, s)) in delta.iter().zip(&shown).enumerate() {
+        if s.load(Ordering::Relaxed) == 0 {
+            continue;
+        }
+        report.shown_texels += 1;
+        let d = f32::from_bits(d.load(Ordering::Relaxed));
+        if d < -settings.margin {
+            geo.opacity[t] = false;
+            report.removed_texels += 1;
+            report.error_change += f64::from(d);
+        }
+    }
+    report
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bake::quads::Quad;
+    use crate::bake::Aabb;
+    use glam::Vec3;
+
+    /// A 2 × 2-texel quad in the plane z = `z`, x ∈ [x0, x0 + 0.2].
+    fn quad(x0: f32, z: f32) -> Quad {
+        Quad {
+            origin: Vec3::new(x0, 0.1, z),
+            u: Vec3::new(0.2, 0.0, 0.0),
+            v: Vec3::new(0.0, 0.2, 0.0),
+            normal: Vec3::Z,
+            voxel: [0; 3],
+            twist: Vec3::ZERO,
+        }
+    }
+
+    /// Colour σ(8·f₀ − 4) in every channel: feature 0 decides it.
+    fn mlp() -> MlpWeights {
+        let mut w = MlpWeights::ZERO;
+        w.w0[0][0] = 1.0;
+        w.w1[0][0] = 1.0;
+        for k in 0..3 {
+            w.w2[0][k] = 8.0;
+            w.b2[k] = -4.0;
+        }
+        w
+    }
+
+    /// A camera on −y looks at a small quad (3 × 3 texels) in front of a
+    /// larger one. Once some texels go, the G-buffers the two layers give
+    /// are the ones a new rasterization gives, but for the subsamples that
+    /// lost both layers, which are counted.
+    #[test]
+    fn the_layers_give_the_next_gbuffers() {
+        use crate::bake::Silhouette;
+        use crate::camera::{Camera, Intrinsics};
+        let facing = |c: Vec3, e: f32| Quad {
+            origin: c - Vec3::new(0.5 * e, 0.0, 0.5 * e),
+            u: Vec3::new(e, 0.0, 0.0),
+            v: Vec3::new(0.0, 0.0, e),
+            normal: -Vec3::Y,
+            voxel: [0; 3],
+            twist: Vec3::ZERO,
+        };
+        let p = 3;
+        let geo = Geometry {
+            cube: Aabb {
+                min: Vec3::splat(-1.0),
+                max: Vec3::splat(1.0),
+            },
+            voxel: 0.1,
+            shell_voxels: 0,
+            full_voxels: 0,
+            quads: vec![
+                facing(Vec3::new(0.0, -0.5, 0.0), 0.6),
+                facing(Vec3::new(0.0, 0.0, 0.0), 1.0),
+            ],
+            opacity: vec![true; 18],
+        };
+        let k = Intrinsics::from_fov_x(0.7, 24, 24);
+        let cam = Camera::look_at(Vec3::new(0.0, -4.0, 0.0), Vec3::ZERO, Vec3::Z, k);
+        let image = image::RgbaImage::from_pixel(24, 24, image::Rgba([90, 140, 200, 255]));
+        let views = [BakeView {
+            camera: cam,
+            image: &image,
+            silhouette: Silhouette::Alpha,
+        }];
+        for supersample in [false, true] {
+            let peeled = peel(&geo, p, &views, supersample).unwrap();
+            assert!(peeled
+                .pixels
+                .iter()
+                .any(|px| px.front[0] < 9 && px.behind[0] >= 9));
+            // Front texels 0 and 4 go: exact. Then also the back quad's
+            // centre, behind them: lost where both go.
+            let mut pruned = geo.clone();
+            pruned.opacity[0] = false;
+            pruned.opacity[4] = false;
+            let (derived, lost) = peeled.gbuffers(&pruned.opacity, supersample);
+            let fresh = gbuffer::of_geometry(&pruned, p, &views, supersample).unwrap();
+            assert_eq!(lost, 0);
+            assert_eq!(derived.pixels, fresh.pixels, "supersample {supersample}");
+            assert_eq!(derived.subsamples, fresh.subsamples);
+            assert_eq!(derived.per_view, fresh.per_view);
+            pruned.opacity[9 + 4] = false;
+            let (_, lost) = peeled.gbuffers(&pruned.opacity, supersample);
+            assert!(lost > 0, "supersample {supersample}");
+        }
+    }
+
+    #[test]
+    fn a_texel_goes_only_where_what_lies_behind_it_matches_the_photos_better() {
+        let p = 2;
+        // Quad 0 (dark, f₀ = 0.1) in front of quad 1 (light, f₀ = 0.9), far
+        // apart in the lattice so their vertices are their own.
+        let mut geo = Geometry {
+            cube: Aabb {
+                min: Vec3::ZERO,
+                max: Vec3::ONE,
+            },
+            voxel: 0.25,
+            shell_voxels: 2,
+            full_voxels: 0,
+            quads: vec![quad(0.0, 0.1), quad(0.7, 0.9)],
+            opacity: vec![true; 8],
+        };
+        let points: Vec<Vec3> = (0..8).map(|t| geo.texel_point(p, t)).collect();
+        let mut grid = FeatureGrid::new(&geo.cube, 4, &points);
+        for (t, x) in points.iter().enumerate() {
+            let f0 = if t < 4 { 0.1 } else { 0.9 };
+            for &s in &grid.taps(*x).unwrap().slot {
+                grid.values[s as usize] = [f0, 0.5, 0.5, 0.0, 0.5, 0.5, 0.5, 0.0];
+            }
+        }
+        let mlp = mlp();
+        let shade = |t: u32| {
+            let b = texel_bytes(&geo, p, &grid);
+            let f = std::array::from_fn(|c| net::decode(c, b[t as usize][c]));
+            let y = net::to_u8(net::forward(&mlp, &net::input(&f, [0.0, 0.0, 1.0])).y);
+            y.map(|v| f32::from(v) / 255.0)
+        };
+        let (dark, light) = (shade(0), shade(4));
+        assert!(dark[0] < 0.1 && light[0] > 0.9, "{dark:?} {light:?}");
+        let px = |front: u32, behind: u32, target: [f32; 3]| PeelPixel {
+            front: [front, NO_TEXEL, NO_TEXEL, NO_TEXEL],
+            behind: [behind, NO_TEXEL, NO_TEXEL, NO_TEXEL],
+            dir: [0.0, 0.0, 1.0],
+            target,
+            cov: 255,
+        };
+        let pixels = [
+            // Texel 0: the photos show the light quad behind it: it goes.
+            px(0, 4, light),
+            px(0, 4, light),
+            // Texel 1: the photos show it: it stays.
+            px(1, 5, dark),
+            // Texel 2: the photos show background where nothing is behind.
+            px(2, NO_TEXEL, [1.0; 3]),
+            // Texel 3: one pixel each way, the dark one exact: it stays.
+            px(3, 7, dark),
+            px(3, 7, [0.6; 3]),
+        ];
+        let mut settings = VisibilitySettings {
+            rounds: 1,
+            margin: 0.0,
+        };
+        let mut g = geo.clone();
+        let r = prune(&mut g, p, &pixels, &grid, &mlp, false, &settings);
+        assert_eq!(r.pixels, 6);
+        assert_eq!(r.shown_texels, 4);
+        assert_eq!(
+            g.opacity,
+            [false, true, false, true, true, true, true, true],
+            "{r:?}"
+        );
+        assert!(r.error_change < 0.0);
+        // A margin above a texel's gain keeps it.
+        settings.margin = 10.0;
+        let r = prune(&mut geo, p, &pixels, &grid, &mlp, false, &settings);
+        assert_eq!(r.removed_texels, 0);
+        assert!(geo.opacity.iter().all(|&o| o));
+    }
+}
