@@ -25,6 +25,7 @@ use crate::capture::Capture;
 use crate::device::Device;
 use crate::eval::scale::Configs;
 use crate::fit;
+use crate::geometry::Geometry;
 use crate::metrics::{Lpips, Metrics};
 use crate::procedural::{arrange, make_capture, CaptureSpec, Layout, Preset, RenderOptions};
 use crate::render::{try_render_scene, RenderOptions as DrawOptions};
@@ -764,6 +765,7 @@ pub fn baseline_plan(
             p,
             size_bytes: b.sample.size_bytes,
             quality: b.sample.ssim,
+            geometry: Geometry::Planes,
             config_index: None,
         });
     }
@@ -810,6 +812,15 @@ pub fn realise(
         .objects
         .iter()
         .map(|o| {
+            // The store bakes and keys planes only: a mesh choice must not
+            // come back as a planes bake (the pipeline's own profiles are
+            // planes, so its plans never pick mesh).
+            if !o.geometry.is_planes() {
+                anyhow::bail!(
+                    "{} plan: object `{}` is planned as {} (g {}, p {}), but the pipeline's bake store bakes planes only; bake it with `nerflex bake --surface {}`",
+                    plan.method, o.name, o.geometry, o.g, o.p, o.geometry
+                );
+            }
             Ok(BakeRequest {
                 views: views_of(prepared, plan.method, o)?,
                 g: o.g,
