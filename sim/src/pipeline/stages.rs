@@ -790,6 +790,20 @@ pub fn baseline_plan(
     ))
 }
 
+/// Errors unless every planned object is planes: the store bakes and keys
+/// (views, g, p) only, so a mesh choice must not come back as a planes
+/// bake. The pipeline's own profiles are planes, so its plans never pick
+/// mesh; a plan from a two-geometry scene would.
+fn planes_only(plan: &Plan) -> anyhow::Result<()> {
+    match plan.objects.iter().find(|o| !o.geometry.is_planes()) {
+        None => Ok(()),
+        Some(o) => anyhow::bail!(
+            "{} plan: object `{}` is planned as {} (g {}, p {}), but the pipeline bakes planes only; bake it with `nerflex bake --surface {}`",
+            plan.method, o.name, o.geometry, o.g, o.p, o.geometry
+        ),
+    }
+}
+
 /// Stage 3: bakes the plan's configurations (or finds them in the store),
 /// renders the capture's held-out views with all of them and measures.
 pub fn realise(
@@ -799,6 +813,7 @@ pub fn realise(
     lpips: Option<&Lpips>,
     progress: &dyn Progress,
 ) -> anyhow::Result<Realised> {
+    planes_only(plan)?;
     let store = opts.bake_store();
     progress.stage(
         &format!("baking the {} plan", plan.method),
@@ -812,15 +827,6 @@ pub fn realise(
         .objects
         .iter()
         .map(|o| {
-            // The store bakes and keys planes only: a mesh choice must not
-            // come back as a planes bake (the pipeline's own profiles are
-            // planes, so its plans never pick mesh).
-            if !o.geometry.is_planes() {
-                anyhow::bail!(
-                    "{} plan: object `{}` is planned as {} (g {}, p {}), but the pipeline's bake store bakes planes only; bake it with `nerflex bake --surface {}`",
-                    plan.method, o.name, o.geometry, o.g, o.p, o.geometry
-                );
-            }
             Ok(BakeRequest {
                 views: views_of(prepared, plan.method, o)?,
                 g: o.g,
@@ -1064,6 +1070,38 @@ mod tests {
     use super::*;
     use crate::camera::{Camera, Intrinsics};
     use image::{GrayImage, Luma, RgbaImage};
+
+    #[test]
+    fn a_mesh_choice_is_an_error_not_a_planes_bake() {
+        let object = |name: &str, geometry| PlannedObject {
+            name: name.into(),
+            g: 256,
+            p: 5,
+            size_bytes: 1,
+            quality: 0.9,
+            geometry,
+            config_index: None,
+        };
+        let mut plan = Plan {
+            method: Method::Dp,
+            device: None,
+            budget_bytes: 10,
+            feasible: true,
+            objects: vec![object("chair", Geometry::Planes)],
+            total_size_bytes: 2,
+            total_quality: 1.8,
+            total_quality_q: Default::default(),
+            total_units: 0,
+            budget_units: 0,
+            unit_bytes: 1,
+        };
+        assert!(planes_only(&plan).is_ok());
+        plan.objects.push(object("lego", Geometry::Mesh));
+        assert_eq!(
+            planes_only(&plan).unwrap_err().to_string(),
+            "dp plan: object `lego` is planned as mesh (g 256, p 5), but the pipeline bakes planes only; bake it with `nerflex bake --surface mesh`"
+        );
+    }
 
     #[test]
     fn next_budget_takes_the_overshoot_off_the_planning_budget() {
