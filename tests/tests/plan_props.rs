@@ -293,7 +293,7 @@ proptest! {
                 ..o.clone()
             }).collect();
             // A geometry alone is a problem only if every object has it.
-            objects.iter().all(|o| !o.configs.is_empty()).then(|| Scene { objects, single: None })
+            objects.iter().all(|o| !o.configs.is_empty()).then_some(Scene { objects, single: None })
         };
         let union = plan(Method::Dp, &scene, budget);
         if let Ok(u) = &union {
