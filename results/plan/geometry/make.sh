@@ -75,7 +75,7 @@ if [ "$MEASURE" = "--measure" ]; then
             --surface "$geo" --measure --max-test-views 10 --out "$BAKES/$name" > "$BAKES/$name.log" 2>&1
         fi
         awk -F'[ ,]+' -v pre="$b,$choice,$obj,$g,$p,$geo,$pmb,$pssim" '
-          /^size: / { file = $2; gpu = $6 }
+          /^size: / { file = $2; gpu = $7 }
           /^quality over/ { ssim = $7; psnr = $9; lpips = $12 }
           END { printf "%s,%.2f,%.1f,%s,%s,%s\n", pre, file / 1e6, gpu / 1048576, ssim, psnr, lpips }' \
           "$BAKES/$name.log"
@@ -111,7 +111,7 @@ fi
     echo
     echo "| budget MB | choice | object | config | predicted MB | predicted SSIM | measured file MB | measured GPU MiB | measured SSIM | PSNR dB | LPIPS |"
     echo "|---:|---|---|---|---:|---:|---:|---:|---:|---:|---:|"
-    awk -F, 'NR > 1 { printf "| %s | %s | %s | %s/%s/%s | %s | %s | %s | %s | %s | %s | %s |\n", $1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13
+    awk -F, 'NR > 1 { printf "| %s | %s | %s | %s/%s/%s | %.2f | %.4f | %s | %s | %s | %s | %s |\n", $1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13
                       k = $1 "," $2; if (!(k in pmb)) order[++n] = k
                       pmb[k] += $7; pq[k] += $8; mb[k] += $9; gpu[k] += $10; q[k] += $11 }
              END { for (i = 1; i <= n; i++) { k = order[i]; split(k, a, ",")
