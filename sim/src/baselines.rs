@@ -1,7 +1,10 @@
 //! Configuration selection: NeRFlex's exact DP and the paper's baselines.
 //!
 //! Every method solves the same problem: one configuration (g, p) per object,
-//! total size within the budget. Sizes are rounded **up** to the budget unit
+//! total size within the budget. A configuration also names its bake
+//! geometry ([`Geometry`]); when an object has configurations of both
+//! geometries, the choice is over their union, so the geometry is chosen
+//! per object like g and p (see "Geometry" below). Sizes are rounded **up** to the budget unit
 //! and the budget down (see [`Budget`]), the same way for every method, so
 //! "feasible" means the same thing everywhere and always implies that the
 //! true total in bytes fits. Qualities are compared as exact fixed-point
@@ -21,6 +24,14 @@
 //! `block` and `single` do not optimise: they always return their plan,
 //! with `feasible: false` when it does not fit. The others return an error
 //! when they find no feasible plan.
+//!
+//! **Geometry.** `dp`, `brute`, `greedy` and `fairness` treat each
+//! object's configurations of every geometry as one list, so they pick
+//! (g, p, geometry) with no special case (the DP stays exact over the
+//! union). `slsqp` relaxes g and p only: it solves one continuous problem
+//! per assignment of a geometry to each object and keeps the best
+//! feasible rounded plan (see its module). `block` and `single` use
+//! MobileNeRF's default, planes at (128, 17).
 
 mod brute;
 mod dp;
@@ -32,6 +43,7 @@ mod slsqp;
 
 pub use fixed::effective_grid;
 
+use crate::geometry::Geometry;
 use crate::scene_file::Scene;
 use nerflex_core::units::{Bytes, QualitySum};
 use serde::{Deserialize, Serialize};
@@ -204,6 +216,11 @@ pub struct PlannedObject {
     pub size_bytes: u64,
     /// Predicted SSIM.
     pub quality: f64,
+    /// The geometry it is baked with. Left out of JSON when `planes` (and
+    /// read as `planes` when absent), so planes-only plans serialize as
+    /// before.
+    #[serde(default, skip_serializing_if = "Geometry::is_planes")]
+    pub geometry: Geometry,
     /// Index into the scene object's `configs` (for Single-NeRF: into the
     /// scene's `single.configs`, `None` when derived). Not serialized.
     #[serde(skip)]

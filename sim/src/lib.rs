@@ -15,6 +15,7 @@ pub mod data;
 pub mod device;
 pub mod eval;
 pub mod fit;
+pub mod geometry;
 pub mod metrics;
 pub mod output;
 pub mod pipeline;

@@ -32,6 +32,23 @@
 //! `g + a ≥ 0.5`); anything else is an error naming the field. Extra fields
 //! (such as the fit's `"fit"` diagnostics) are ignored.
 //!
+//! **Geometry.** A configuration is baked as `planes` (quads per shell
+//! voxel, the default) or `mesh` (one connected mesh; `nerflex bake
+//! --surface mesh`), see [`crate::geometry`]. A table row may say which
+//! with `"geometry": "planes" | "mesh"`; absent means `planes`, so every
+//! older file reads as before. A row is identified by (g, p, geometry). An
+//! object may carry one profile per geometry:
+//!
+//! ```json
+//! {"name": "lego", "profiles": {"planes": {…}, "mesh": {…}}}
+//! ```
+//!
+//! each in the profile form above; the old single `"profile"` is the
+//! planes profile (`"profile"` and `"profiles"` together are an error).
+//! The object's configurations are the union: each profile evaluated on
+//! its own (g, p) lists, planes first (at most 256 in all). The planner
+//! then picks one (g, p, geometry) per object ([`crate::baselines`]).
+//!
 //! An optional top-level `"single"` entry (same shape as an object; `name`
 //! optional, default `"single"`) gives the configurations of one network for
 //! the whole scene, used by the Single-NeRF baseline.
@@ -39,6 +56,7 @@
 //! Errors name the file and the field, e.g.
 //! `scene.json: objects[2].configs[5].size_bytes: negative value -3`.
 
+use crate::geometry::Geometry;
 use nerflex_core::profiler::{Family, ProfileError};
 use nerflex_core::units::{Bytes, UnitError};
 use serde_json::{Map, Number, Value};
@@ -65,11 +83,33 @@ pub struct SceneObject {
     pub name: String,
     /// Configurations: the table, or the profile evaluated on its (g, p) grid.
     pub configs: Vec<ConfigEntry>,
-    /// The profile the configurations were evaluated from, if any.
+    /// The planes profile the configurations were evaluated from, if any
+    /// (JSON `"profile"` or `"profiles"."planes"`).
     pub profile: Option<Profile>,
+    /// The mesh profile, if any (JSON `"profiles"."mesh"`); its
+    /// configurations follow the planes profile's in `configs`.
+    pub mesh_profile: Option<Profile>,
 }
 
-/// One configuration (g, p) of an object.
+impl SceneObject {
+    /// The object's profile of `geometry`, if it has one.
+    pub fn profile_of(&self, geometry: Geometry) -> Option<&Profile> {
+        match geometry {
+            Geometry::Planes => self.profile.as_ref(),
+            Geometry::Mesh => self.mesh_profile.as_ref(),
+        }
+    }
+
+    /// The geometries its configurations use, in [`Geometry::ALL`] order.
+    pub fn geometries(&self) -> Vec<Geometry> {
+        Geometry::ALL
+            .into_iter()
+            .filter(|&g| self.configs.iter().any(|c| c.geometry == g))
+            .collect()
+    }
+}
+
+/// One configuration (g, p, geometry) of an object.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ConfigEntry {
     /// Voxel grid resolution per axis.
@@ -80,6 +120,21 @@ pub struct ConfigEntry {
     pub size: Bytes,
     /// Predicted or measured SSIM in `[0, 1]`.
     pub quality: f64,
+    /// The geometry it is baked with.
+    pub geometry: Geometry,
+}
+
+impl ConfigEntry {
+    /// A planes configuration.
+    pub fn planes(g: u32, p: u32, size: Bytes, quality: f64) -> ConfigEntry {
+        ConfigEntry {
+            g,
+            p,
+            size,
+            quality,
+            geometry: Geometry::Planes,
+        }
+    }
 }
 
 /// Fitted profile of one object (see the module docs for the formulas).
@@ -126,6 +181,20 @@ impl Profile {
         let x = q.volume_f64(g, p);
         let e = f64::from(q.family.g_power());
         (e * q.k / (x * gg), 2.0 * q.k / (x * pp))
+    }
+
+    /// The profile in the scene file's profile form.
+    pub fn to_json(&self) -> Value {
+        let params = |m: &ModelParams| {
+            serde_json::json!({"k": m.k, "a": m.a, "b": m.b, "m": m.m,
+                               "g_power": m.family.g_power()})
+        };
+        serde_json::json!({
+            "size": params(&self.size),
+            "quality": params(&self.quality),
+            "g": self.g,
+            "p": self.p,
+        })
     }
 
     /// The profile in fixed point (`nerflex_core::profiler`).
@@ -199,31 +268,33 @@ impl SceneObject {
     fn to_json(&self) -> Value {
         let mut obj = Map::new();
         obj.insert("name".into(), Value::String(self.name.clone()));
-        match &self.profile {
-            Some(p) => {
-                let params = |m: &ModelParams| {
-                    serde_json::json!({"k": m.k, "a": m.a, "b": m.b, "m": m.m,
-                                       "g_power": m.family.g_power()})
-                };
-                obj.insert(
-                    "profile".into(),
-                    serde_json::json!({
-                        "size": params(&p.size),
-                        "quality": params(&p.quality),
-                        "g": p.g,
-                        "p": p.p,
-                    }),
-                );
+        match (&self.profile, &self.mesh_profile) {
+            // Planes only: the older single-profile form, unchanged.
+            (Some(p), None) => {
+                obj.insert("profile".into(), p.to_json());
             }
-            None => {
+            (None, None) => {
                 let configs = self
                     .configs
                     .iter()
                     .map(|c| {
-                        serde_json::json!({"g": c.g, "p": c.p, "size_bytes": c.size.0, "quality": c.quality})
+                        let mut row = serde_json::json!({"g": c.g, "p": c.p, "size_bytes": c.size.0, "quality": c.quality});
+                        if !c.geometry.is_planes() {
+                            row["geometry"] = Value::String(c.geometry.name().into());
+                        }
+                        row
                     })
                     .collect();
                 obj.insert("configs".into(), Value::Array(configs));
+            }
+            (planes, mesh) => {
+                let mut profiles = Map::new();
+                for (g, p) in [(Geometry::Planes, planes), (Geometry::Mesh, mesh)] {
+                    if let Some(p) = p {
+                        profiles.insert(g.name().into(), p.to_json());
+                    }
+                }
+                obj.insert("profiles".into(), Value::Object(profiles));
             }
         }
         Value::Object(obj)
@@ -301,31 +372,99 @@ impl Parser<'_> {
                 ))
             }
         };
-        match (obj.get("configs"), obj.get("profile")) {
-            (Some(_), Some(_)) => Err(self.err(
+        let given: Vec<&str> = ["configs", "profile", "profiles"]
+            .into_iter()
+            .filter(|k| obj.contains_key(*k))
+            .collect();
+        if given.len() > 1 {
+            return Err(self.err(
                 path,
-                "has both \"configs\" and \"profile\"; give one of them",
-            )),
-            (None, None) => Err(self.err(path, "needs either \"configs\" or \"profile\"")),
-            (Some(c), None) => Ok(SceneObject {
+                format!(
+                    "has both {}; give one of \"configs\", \"profile\" or \"profiles\"",
+                    given
+                        .iter()
+                        .map(|k| format!("\"{k}\""))
+                        .collect::<Vec<_>>()
+                        .join(" and ")
+                ),
+            ));
+        }
+        match (obj.get("configs"), obj.get("profile"), obj.get("profiles")) {
+            (Some(c), _, _) => Ok(SceneObject {
+                configs: self.table(c, &format!("{path}.configs"), &name)?,
                 name,
-                configs: self.table(c, &format!("{path}.configs"))?,
                 profile: None,
+                mesh_profile: None,
             }),
-            (None, Some(p)) => {
+            (_, Some(p), _) => {
                 let ppath = format!("{path}.profile");
                 let profile = self.profile(p, &ppath)?;
-                let configs = self.evaluate(&profile, &ppath)?;
+                let configs = self.evaluate(&profile, &ppath, Geometry::Planes)?;
                 Ok(SceneObject {
                     name,
                     configs,
                     profile: Some(profile),
+                    mesh_profile: None,
                 })
             }
+            (_, _, Some(ps)) => self.profiles(ps, &format!("{path}.profiles"), name),
+            _ => Err(self.err(path, "needs \"configs\", \"profile\" or \"profiles\"")),
         }
     }
 
-    fn table(&self, v: &Value, path: &str) -> Result<Vec<ConfigEntry>, SceneError> {
+    /// `"profiles": {"planes": …, "mesh": …}`: one profile per geometry.
+    fn profiles(&self, v: &Value, path: &str, name: String) -> Result<SceneObject, SceneError> {
+        let map = v.as_object().ok_or_else(|| {
+            self.err(
+                path,
+                format!(
+                    "object {name:?}: expected an object of profiles by geometry (planes, mesh)"
+                ),
+            )
+        })?;
+        if map.is_empty() {
+            return Err(self.err(path, format!("object {name:?}: no profiles")));
+        }
+        if let Some(bad) = map.keys().find(|k| Geometry::parse(k).is_none()) {
+            return Err(self.err(
+                &format!("{path}.{bad}"),
+                format!("object {name:?}: unknown geometry {bad:?}; expected planes or mesh"),
+            ));
+        }
+        let mut object = SceneObject {
+            name,
+            configs: Vec::new(),
+            profile: None,
+            mesh_profile: None,
+        };
+        for geometry in Geometry::ALL {
+            let Some(p) = map.get(geometry.name()) else {
+                continue;
+            };
+            let ppath = format!("{path}.{geometry}");
+            let profile = self.profile(p, &ppath)?;
+            object
+                .configs
+                .extend(self.evaluate(&profile, &ppath, geometry)?);
+            match geometry {
+                Geometry::Planes => object.profile = Some(profile),
+                Geometry::Mesh => object.mesh_profile = Some(profile),
+            }
+        }
+        if object.configs.len() > MAX_CONFIGS {
+            return Err(self.err(
+                path,
+                format!(
+                    "object {:?}: {} configurations over all geometries; at most {MAX_CONFIGS} are supported",
+                    object.name,
+                    object.configs.len()
+                ),
+            ));
+        }
+        Ok(object)
+    }
+
+    fn table(&self, v: &Value, path: &str, name: &str) -> Result<Vec<ConfigEntry>, SceneError> {
         let list = v
             .as_array()
             .ok_or_else(|| self.err(path, "expected a list of configurations"))?;
@@ -344,7 +483,7 @@ impl Parser<'_> {
                 ),
             ));
         }
-        let mut seen: HashMap<(u32, u32), usize> = HashMap::new();
+        let mut seen: HashMap<(u32, u32, Geometry), usize> = HashMap::new();
         let mut out = Vec::with_capacity(list.len());
         for (j, item) in list.iter().enumerate() {
             let cpath = format!("{path}[{j}]");
@@ -355,10 +494,16 @@ impl Parser<'_> {
             let p = self.positive_int(c, &cpath, "p")?;
             let size = self.size_bytes(c, &cpath)?;
             let quality = self.quality(c, &cpath)?;
-            if let Some(first) = seen.insert((g, p), j) {
+            let geometry = self.geometry(c, &cpath, name)?;
+            if let Some(first) = seen.insert((g, p, geometry), j) {
+                let what = if geometry.is_planes() {
+                    String::new()
+                } else {
+                    format!(", {geometry}")
+                };
                 return Err(self.err(
                     &cpath,
-                    format!("duplicate configuration (g {g}, p {p}) (also {path}[{first}])"),
+                    format!("duplicate configuration (g {g}, p {p}{what}) (also {path}[{first}])"),
                 ));
             }
             out.push(ConfigEntry {
@@ -366,9 +511,32 @@ impl Parser<'_> {
                 p,
                 size,
                 quality,
+                geometry,
             });
         }
         Ok(out)
+    }
+
+    /// A row's optional `"geometry"` (absent: planes).
+    fn geometry(
+        &self,
+        obj: &Map<String, Value>,
+        path: &str,
+        name: &str,
+    ) -> Result<Geometry, SceneError> {
+        match obj.get("geometry") {
+            None => Ok(Geometry::Planes),
+            Some(Value::String(s)) => Geometry::parse(s).ok_or_else(|| {
+                self.err(
+                    &format!("{path}.geometry"),
+                    format!("object {name:?}: unknown geometry {s:?}; expected planes or mesh"),
+                )
+            }),
+            Some(other) => Err(self.err(
+                &format!("{path}.geometry"),
+                format!("object {name:?}: expected \"planes\" or \"mesh\", got {other}"),
+            )),
+        }
     }
 
     fn field<'v>(
@@ -545,7 +713,12 @@ impl Parser<'_> {
         })
     }
 
-    fn evaluate(&self, profile: &Profile, path: &str) -> Result<Vec<ConfigEntry>, SceneError> {
+    fn evaluate(
+        &self,
+        profile: &Profile,
+        path: &str,
+        geometry: Geometry,
+    ) -> Result<Vec<ConfigEntry>, SceneError> {
         let field_err = |e: ProfileError| match e {
             ProfileError::NotFinite { curve, field, .. }
             | ProfileError::ParamOutOfRange { curve, field, .. } => {
@@ -573,6 +746,7 @@ impl Parser<'_> {
                     p,
                     size,
                     quality: quality.to_f64(),
+                    geometry,
                 });
             }
         }
@@ -650,7 +824,7 @@ mod tests {
         assert!(err("[1]").starts_with("scene.json: expected a JSON object"));
         assert_eq!(
             err(r#"{"objects": [{"name": "a"}]}"#),
-            "scene.json: objects[0]: needs either \"configs\" or \"profile\""
+            "scene.json: objects[0]: needs \"configs\", \"profile\" or \"profiles\""
         );
         assert!(err("{\"objects\": [{\"name\": \"a\", \"configs\": [{\"g\": 1, \"p\": 1, \"size_bytes\": 1e999, \"quality\": 0.5}]}]}")
             .starts_with("scene.json: invalid JSON"));
@@ -731,6 +905,126 @@ mod tests {
         assert_eq!(
             err(&scene(r#"{"k": 0.5, "a": 0, "b": 0, "m": 1000}"#, "[2000]")),
             "scene.json: objects[0].profile.g: grid g = 2000 is outside 1..=1024"
+        );
+    }
+
+    #[test]
+    fn geometry_absent_means_planes_and_rows_may_be_mesh() {
+        let s = parse(
+            r#"{"objects": [{"name": "lego", "configs": [
+                {"g": 64, "p": 9, "size_bytes": 10, "quality": 0.9},
+                {"g": 64, "p": 9, "size_bytes": 8, "quality": 0.92, "geometry": "mesh"},
+                {"g": 32, "p": 9, "size_bytes": 4, "quality": 0.8, "geometry": "planes"}]}]}"#,
+            "scene.json",
+        )
+        .unwrap();
+        let geo: Vec<Geometry> = s.objects[0].configs.iter().map(|c| c.geometry).collect();
+        assert_eq!(geo, [Geometry::Planes, Geometry::Mesh, Geometry::Planes]);
+        assert_eq!(s.objects[0].geometries(), Geometry::ALL);
+        // Written back: planes rows without the field, mesh rows with it.
+        let json = s.to_json();
+        let rows = json["objects"][0]["configs"].as_array().unwrap();
+        assert!(rows[0].get("geometry").is_none() && rows[2].get("geometry").is_none());
+        assert_eq!(rows[1]["geometry"], "mesh");
+        assert_eq!(parse(&json.to_string(), "x").unwrap(), s);
+        let base = |row: &str| {
+            format!(
+                r#"{{"objects": [{{"name": "lego", "configs": [
+                {{"g": 64, "p": 9, "size_bytes": 10, "quality": 0.9}}, {row}]}}]}}"#
+            )
+        };
+        assert_eq!(
+            err(&base(r#"{"g": 64, "p": 9, "size_bytes": 1, "quality": 0.5, "geometry": "meshes"}"#)),
+            "scene.json: objects[0].configs[1].geometry: object \"lego\": unknown geometry \"meshes\"; expected planes or mesh"
+        );
+        assert_eq!(
+            err(&base(r#"{"g": 64, "p": 9, "size_bytes": 1, "quality": 0.5, "geometry": 2}"#)),
+            "scene.json: objects[0].configs[1].geometry: object \"lego\": expected \"planes\" or \"mesh\", got 2"
+        );
+        assert_eq!(
+            err(&base(r#"{"g": 64, "p": 9, "size_bytes": 1, "quality": 0.5, "geometry": "planes"}"#)),
+            "scene.json: objects[0].configs[1]: duplicate configuration (g 64, p 9) (also objects[0].configs[0])"
+        );
+    }
+
+    const PLANES: &str = r#"{"size": {"k": 0.5, "a": 0, "b": 0, "m": 1000},
+        "quality": {"k": 100, "a": 0, "b": 0, "m": 0.95}, "g": [2, 4], "p": [1, 3]}"#;
+    const MESH: &str = r#"{"size": {"k": 0.25, "a": 0, "b": 0, "m": 500, "g_power": 2},
+        "quality": {"k": 50, "a": 0, "b": 0, "m": 0.9}, "g": [4, 8], "p": [3]}"#;
+
+    #[test]
+    fn one_profile_per_geometry() {
+        let s = parse(
+            &format!(r#"{{"objects": [{{"name": "lego", "profiles": {{"mesh": {MESH}, "planes": {PLANES}}}}}]}}"#),
+            "scene.json",
+        )
+        .unwrap();
+        let o = &s.objects[0];
+        // The union, planes first: 2 × 2 planes then 2 × 1 mesh.
+        let got: Vec<(u32, u32, Geometry)> =
+            o.configs.iter().map(|c| (c.g, c.p, c.geometry)).collect();
+        assert_eq!(
+            got,
+            [
+                (2, 1, Geometry::Planes),
+                (2, 3, Geometry::Planes),
+                (4, 1, Geometry::Planes),
+                (4, 3, Geometry::Planes),
+                (4, 3, Geometry::Mesh),
+                (8, 3, Geometry::Mesh),
+            ]
+        );
+        // Mesh S(4,3) = 0.25·16·9 + 500 = 536 bytes.
+        assert_eq!(o.configs[4].size, Bytes(536));
+        assert!(o.profile_of(Geometry::Planes).is_some());
+        assert_eq!(o.profile_of(Geometry::Mesh).unwrap().g, [4, 8]);
+        assert_eq!(parse(&s.to_json().to_string(), "x").unwrap(), s);
+        // The old single profile is exactly the planes entry of "profiles".
+        let old = parse(
+            &format!(r#"{{"objects": [{{"name": "lego", "profile": {PLANES}}}]}}"#),
+            "scene.json",
+        )
+        .unwrap();
+        let new = parse(
+            &format!(r#"{{"objects": [{{"name": "lego", "profiles": {{"planes": {PLANES}}}}}]}}"#),
+            "scene.json",
+        )
+        .unwrap();
+        assert_eq!(old, new);
+        // A planes-only object is written in the old form.
+        assert!(old.to_json()["objects"][0].get("profile").is_some());
+        // Mesh only.
+        let mesh_only = parse(
+            &format!(r#"{{"objects": [{{"name": "lego", "profiles": {{"mesh": {MESH}}}}}]}}"#),
+            "scene.json",
+        )
+        .unwrap();
+        assert_eq!(mesh_only.objects[0].geometries(), [Geometry::Mesh]);
+        assert!(mesh_only.objects[0].profile.is_none());
+        assert_eq!(
+            parse(&mesh_only.to_json().to_string(), "x").unwrap(),
+            mesh_only
+        );
+    }
+
+    #[test]
+    fn profiles_errors_name_the_object_and_field() {
+        assert_eq!(
+            err(&format!(r#"{{"objects": [{{"name": "lego", "profiles": {{"meshes": {MESH}}}}}]}}"#)),
+            "scene.json: objects[0].profiles.meshes: object \"lego\": unknown geometry \"meshes\"; expected planes or mesh"
+        );
+        assert_eq!(
+            err(r#"{"objects": [{"name": "lego", "profiles": {}}]}"#),
+            "scene.json: objects[0].profiles: object \"lego\": no profiles"
+        );
+        assert_eq!(
+            err(&format!(r#"{{"objects": [{{"name": "lego", "profile": {PLANES}, "profiles": {{"mesh": {MESH}}}}}]}}"#)),
+            "scene.json: objects[0]: has both \"profile\" and \"profiles\"; give one of \"configs\", \"profile\" or \"profiles\""
+        );
+        let bad_mesh = MESH.replace(r#""k": 0.25"#, r#""k": -1"#);
+        assert_eq!(
+            err(&format!(r#"{{"objects": [{{"name": "lego", "profiles": {{"mesh": {bad_mesh}}}}}]}}"#)),
+            "scene.json: objects[0].profiles.mesh.size.k: size k = -1 is outside the supported range [0, 1024]"
         );
     }
 }

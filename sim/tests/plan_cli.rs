@@ -227,3 +227,76 @@ fn device_from_a_file() {
         "{e}"
     );
 }
+
+#[test]
+fn two_geometry_scene_plans_name_each_geometry() {
+    let scene = "results/plan/geometry/scene.json";
+    let args = [
+        "plan",
+        "--scene",
+        scene,
+        "--device",
+        "iphone13",
+        "--budget-mb",
+        "150",
+    ];
+    let out = nerflex(&[&args[..], &["--json"]].concat());
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let objects = v["objects"].as_array().unwrap();
+    assert_eq!(objects[0]["name"], "lego");
+    assert_eq!(objects[0]["geometry"], "mesh");
+    assert_eq!(objects[1]["geometry"], "planes");
+    assert!(v["total_size_bytes"].as_u64().unwrap() <= 150_000_000);
+    let out = nerflex(&args);
+    let t = text(&out.stdout);
+    assert!(t.contains("geometry"), "{t}");
+    assert!(
+        t.lines()
+            .any(|l| l.starts_with("lego") && l.contains(" mesh ")),
+        "{t}"
+    );
+}
+
+#[test]
+fn bad_geometry_and_combine_paths_are_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.json");
+    std::fs::write(
+        &bad,
+        r#"{"objects": [{"name": "lego", "configs": [
+            {"g": 1, "p": 1, "size_bytes": 1, "quality": 0.5, "geometry": "voxels"}]}]}"#,
+    )
+    .unwrap();
+    let out = nerflex(&[
+        "plan",
+        "--scene",
+        bad.to_str().unwrap(),
+        "--device",
+        "iphone13",
+    ]);
+    assert!(!out.status.success());
+    let e = text(&out.stderr);
+    assert!(
+        e.contains("objects[0].configs[0].geometry: object \"lego\": unknown geometry \"voxels\""),
+        "{e}"
+    );
+    let out_file = dir.path().join("scene.json");
+    let out = nerflex(&[
+        "profile",
+        "combine",
+        "--planes",
+        "results/profile/trained/profiles.json",
+        "--mesh-profiles",
+        "no/such/mesh.json",
+        "--out",
+        out_file.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let e = text(&out.stderr);
+    assert!(
+        e.contains("--mesh-profiles") && e.contains("no/such/mesh.json"),
+        "{e}"
+    );
+    assert!(!out_file.exists());
+}

@@ -25,14 +25,10 @@ fn scene(objects: &[(&str, &[Cfg])]) -> Scene {
                 name: name.to_string(),
                 configs: cfgs
                     .iter()
-                    .map(|&(g, p, s, q)| ConfigEntry {
-                        g,
-                        p,
-                        size: Bytes(s),
-                        quality: q,
-                    })
+                    .map(|&(g, p, s, q)| ConfigEntry::planes(g, p, Bytes(s), q))
                     .collect(),
                 profile: None,
+                mesh_profile: None,
             })
             .collect(),
         single: None,
@@ -150,13 +146,9 @@ fn single_nerf_derived_and_measured() {
     // A measured single network takes precedence.
     s.single = Some(SceneObject {
         name: "whole".into(),
-        configs: vec![ConfigEntry {
-            g: 128,
-            p: 17,
-            size: Bytes(50),
-            quality: 0.6,
-        }],
+        configs: vec![ConfigEntry::planes(128, 17, Bytes(50), 0.6)],
         profile: None,
+        mesh_profile: None,
     });
     let p = plan(Method::Single, &s, bytes_budget(1000)).unwrap();
     assert_eq!(p.objects[0].name, "whole");

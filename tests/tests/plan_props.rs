@@ -4,6 +4,7 @@
 
 use nerflex_core::units::{Bytes, QualityQ};
 use nerflex_sim::baselines::{plan, Budget, Method, Plan, PlanError};
+use nerflex_sim::geometry::Geometry;
 use nerflex_sim::scene_file::{ConfigEntry, Scene, SceneObject};
 use proptest::prelude::*;
 
@@ -28,6 +29,9 @@ fn size(max: u64) -> impl Strategy<Value = u64> {
 /// One object: a g × p grid, ≤ `max_cfgs` configurations. A tenth of the
 /// objects have holes in their grid (SLSQP then needs a profile and fails).
 /// `standard`: the grid includes g = 128 and p = 17 (Block-/Single-NeRF's).
+/// A third of the objects also have mesh configurations on the same grid
+/// (other sizes and qualities, while they stay within `max_cfgs`), so the
+/// selector chooses over the union of two geometries.
 fn object(
     max_size: u64,
     max_cfgs: usize,
@@ -44,9 +48,14 @@ fn object(
                     ng * np,
                 ),
                 prop::bool::weighted(0.1),
+                prop::collection::vec(
+                    (size(max_size), quality(), prop::bool::weighted(0.7)),
+                    ng * np,
+                ),
+                prop::bool::weighted(0.33),
             )
         })
-        .prop_map(move |(mut gs, mut ps, cells, holes)| {
+        .prop_map(move |(mut gs, mut ps, cells, holes, mesh_cells, mesh)| {
             if standard && !gs.contains(&128) {
                 gs[0] = 128;
             }
@@ -60,12 +69,17 @@ fn object(
                 let needed = standard && g == 128 && p == 17
                     || out.is_empty() && k + 1 == gs.len() * ps.len();
                 if !holes || keep || needed {
-                    out.push(ConfigEntry {
-                        g,
-                        p,
-                        size: Bytes(s),
-                        quality: q,
-                    });
+                    out.push(ConfigEntry::planes(g, p, Bytes(s), q));
+                }
+            }
+            if mesh {
+                for (k, (s, q, keep)) in mesh_cells.into_iter().enumerate() {
+                    if keep && out.len() < max_cfgs {
+                        out.push(ConfigEntry {
+                            geometry: Geometry::Mesh,
+                            ..ConfigEntry::planes(gs[k / ps.len()], ps[k % ps.len()], Bytes(s), q)
+                        });
+                    }
                 }
             }
             out
@@ -85,6 +99,7 @@ fn scene(max_objects: usize, max_size: u64, max_cfgs: usize) -> impl Strategy<Va
                     name: format!("o{i}"),
                     configs,
                     profile: None,
+                    mesh_profile: None,
                 })
                 .collect(),
             single: None,
@@ -150,8 +165,8 @@ fn check_consistent(scene: &Scene, p: &Plan) -> Result<(), TestCaseError> {
         prop_assert_eq!(&o.name, &so.name);
         let c = &so.configs[o.config_index.expect("index")];
         prop_assert_eq!(
-            (c.g, c.p, c.size.0, c.quality),
-            (o.g, o.p, o.size_bytes, o.quality)
+            (c.g, c.p, c.size.0, c.quality, c.geometry),
+            (o.g, o.p, o.size_bytes, o.quality, o.geometry)
         );
         size += o.size_bytes;
     }
@@ -261,6 +276,36 @@ proptest! {
             (Ok(p), Some(q)) => prop_assert_eq!(p.total_quality_q.0, q),
             (Err(_), None) => {}
             (dp, best) => prop_assert!(false, "dp {:?} vs exhaustive {:?}", dp, best),
+        }
+    }
+
+    /// Scenes with both geometries: the DP over the union never plans
+    /// worse than over either geometry alone (each a sub-problem of the
+    /// union), and never exceeds the budget.
+    #[test]
+    fn union_of_geometries_is_never_worse_than_either_alone(
+        (scene, budget) in scene_and_budget(6, TEN_GB, 40),
+    ) {
+        let budget = Budget::new(Bytes(budget));
+        let only = |g: Geometry| -> Option<Scene> {
+            let objects: Vec<SceneObject> = scene.objects.iter().map(|o| SceneObject {
+                configs: o.configs.iter().filter(|c| c.geometry == g).copied().collect(),
+                ..o.clone()
+            }).collect();
+            // A geometry alone is a problem only if every object has it.
+            objects.iter().all(|o| !o.configs.is_empty()).then_some(Scene { objects, single: None })
+        };
+        let union = plan(Method::Dp, &scene, budget);
+        if let Ok(u) = &union {
+            prop_assert!(u.feasible && u.total_size_bytes <= budget.total.0);
+            check_consistent(&scene, u)?;
+        }
+        for g in Geometry::ALL {
+            let Some(alone) = only(g) else { continue };
+            if let Ok(a) = plan(Method::Dp, &alone, budget) {
+                let u = union.as_ref().map_err(|e| TestCaseError::fail(format!("{g} alone plans but the union fails: {e}")))?;
+                prop_assert!(u.total_quality_q >= a.total_quality_q, "{} alone {} beat the union {}", g, a.total_quality, u.total_quality);
+            }
         }
     }
 }

@@ -154,10 +154,11 @@ proptest! {
             objects: sizes.iter().enumerate().map(|(i, &(a, b))| SceneObject {
                 name: format!("o{i}"),
                 configs: vec![
-                    ConfigEntry { g: 128, p: 17, size: Bytes(a.max(b)), quality: 0.9 },
-                    ConfigEntry { g: 64, p: 9, size: Bytes(a.min(b)), quality: 0.8 },
+                    ConfigEntry::planes(128, 17, Bytes(a.max(b)), 0.9),
+                    ConfigEntry::planes(64, 9, Bytes(a.min(b)), 0.8),
                 ],
                 profile: None,
+                mesh_profile: None,
             }).collect(),
             single: None,
         };

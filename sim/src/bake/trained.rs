@@ -86,6 +86,17 @@ pub fn extract_geometry(
     }
 }
 
+/// The planner's choice of geometry as the baker's (the scene file names
+/// only the two geometries that have profiles).
+impl From<crate::geometry::Geometry> for GeometryKind {
+    fn from(g: crate::geometry::Geometry) -> GeometryKind {
+        match g {
+            crate::geometry::Geometry::Planes => GeometryKind::Planes,
+            crate::geometry::Geometry::Mesh => GeometryKind::Mesh,
+        }
+    }
+}
+
 /// Settings of a bake from a field.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrainedParams {

@@ -1,6 +1,8 @@
 //! Baselines that do not optimise: Block-NeRF and Single-NeRF.
 //!
-//! Both always return their plan; `feasible` says whether it fits.
+//! Both always return their plan; `feasible` says whether it fits. Both use
+//! planes configurations only (MobileNeRF's default geometry), whatever
+//! else the scene offers.
 //!
 //! **Single-NeRF** is one network for the whole scene at (128, 17). If the
 //! scene file has a top-level `"single"` entry (measured configurations of
@@ -18,6 +20,7 @@
 
 use super::problem::{Cand, Problem};
 use super::{Method, Plan, PlanError, PlannedObject, DEFAULT_G, DEFAULT_P};
+use crate::geometry::Geometry;
 use nerflex_core::units::{Bytes, QualityQ, QualitySum};
 
 /// Block-NeRF: every object at (128, 17).
@@ -28,7 +31,7 @@ pub(crate) fn block(problem: &Problem) -> Result<Plan, PlanError> {
         .map(|o| {
             o.cands
                 .iter()
-                .position(|c| c.g == DEFAULT_G && c.p == DEFAULT_P)
+                .position(|c| c.g == DEFAULT_G && c.p == DEFAULT_P && c.geometry.is_planes())
                 .ok_or_else(|| PlanError::MissingConfig {
                     method: Method::Block,
                     object: o.name().to_string(),
@@ -53,7 +56,7 @@ pub(crate) fn single(problem: &Problem) -> Result<Plan, PlanError> {
             .configs
             .iter()
             .enumerate()
-            .find(|(_, c)| c.g == DEFAULT_G && c.p == DEFAULT_P)
+            .find(|(_, c)| c.g == DEFAULT_G && c.p == DEFAULT_P && c.geometry.is_planes())
             .ok_or_else(|| PlanError::MissingConfig {
                 method: Method::Single,
                 object: entry.name.clone(),
@@ -83,7 +86,11 @@ pub(crate) fn single(problem: &Problem) -> Result<Plan, PlanError> {
     let g_eff = effective_grid(n);
     let mut parts: Vec<Cand> = Vec::with_capacity(n);
     for o in &problem.objects {
-        let at_p: Vec<&Cand> = o.cands.iter().filter(|c| c.p == DEFAULT_P).collect();
+        let at_p: Vec<&Cand> = o
+            .cands
+            .iter()
+            .filter(|c| c.p == DEFAULT_P && c.geometry.is_planes())
+            .collect();
         let below = at_p
             .iter()
             .filter(|c| c.g as f64 <= g_eff + 1e-9)
@@ -140,6 +147,7 @@ fn single_plan(
             p: DEFAULT_P,
             size_bytes: size.0,
             quality,
+            geometry: Geometry::Planes,
             config_index,
         }],
         total_size_bytes: size.0,

@@ -2,6 +2,7 @@
 //! sizes rounded up to the budget unit and qualities in fixed point.
 
 use super::{Budget, Method, Plan, PlanError, PlannedObject};
+use crate::geometry::Geometry;
 use crate::scene_file::{Scene, SceneObject, MAX_CONFIGS};
 use nerflex_core::units::{Bytes, QualityQ, QualitySum};
 
@@ -18,6 +19,7 @@ pub(crate) struct Cand {
     pub q: QualityQ,
     /// The scene's SSIM value (for output).
     pub quality: f64,
+    pub geometry: Geometry,
 }
 
 /// One object, ready for planning.
@@ -144,6 +146,7 @@ impl<'s> Problem<'s> {
                 p: c.p,
                 size_bytes: c.size.0,
                 quality: c.quality,
+                geometry: c.geometry,
                 config_index: Some(c.index),
             });
             total_size = total_size.saturating_add(c.size);
@@ -198,6 +201,7 @@ fn obj(o: &SceneObject, unit: Bytes) -> Result<Obj<'_>, PlanError> {
                 units: c.size.units_ceil(unit).unwrap_or(u64::MAX),
                 q,
                 quality: c.quality,
+                geometry: c.geometry,
             })
         })
         .collect::<Result<Vec<_>, PlanError>>()?;

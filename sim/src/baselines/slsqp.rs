@@ -12,18 +12,107 @@
 //! 2. otherwise each object's nearest configuration whose size is within
 //!    the size the relaxation gave it; if that plan fits, done;
 //! 3. otherwise it fails, as the paper's SLSQP baseline can.
+//!
+//! **Geometry** is discrete, so it is not relaxed: each object is given one
+//! of its geometries (planes, mesh), the continuous problem is solved over
+//! that geometry's profile (or table) and rounded to that geometry's
+//! configurations as above, once per assignment of geometries to objects,
+//! and the best feasible plan is kept (higher total quality, then fewer
+//! units; ties to the earlier assignment, planes first). A planes-only
+//! scene has one assignment, so its plan is as before. Beyond
+//! [`MAX_ASSIGNMENTS`] combinations only the uniform assignments are
+//! tried (every object planes where it can, and every object mesh where
+//! it can). When no assignment gives a feasible plan, the first one's
+//! error is returned.
 
 use super::problem::{Cand, Obj, Problem};
 use super::{Method, Plan, PlanError};
+use crate::geometry::Geometry;
 use crate::scene_file::Profile;
 use slsqp::{FailStatus, StopTols};
 
+/// Most geometry assignments solved one by one (2^6: six objects with both
+/// geometries); more fall back to the uniform assignments.
+pub(crate) const MAX_ASSIGNMENTS: usize = 64;
+
 pub(crate) fn plan(problem: &Problem) -> Result<Plan, PlanError> {
     problem.check_cheapest_fits()?;
+    let mut best: Option<Plan> = None;
+    let mut first_err: Option<PlanError> = None;
+    for assignment in assignments(problem) {
+        match solve(problem, &assignment) {
+            Ok(p) => {
+                let wins = best.as_ref().is_none_or(|b| {
+                    (p.total_quality_q, std::cmp::Reverse(p.total_units))
+                        > (b.total_quality_q, std::cmp::Reverse(b.total_units))
+                });
+                if wins {
+                    best = Some(p);
+                }
+            }
+            Err(e) => {
+                first_err.get_or_insert(e);
+            }
+        }
+    }
+    best.ok_or_else(|| {
+        first_err.unwrap_or_else(|| PlanError::Internal("slsqp: no geometry assignment".into()))
+    })
+}
+
+/// The geometry of each object, per assignment to try (see the module docs).
+fn assignments(problem: &Problem) -> Vec<Vec<Geometry>> {
+    let per_object: Vec<Vec<Geometry>> = problem
+        .objects
+        .iter()
+        .map(|o| {
+            Geometry::ALL
+                .into_iter()
+                .filter(|&g| o.cands.iter().any(|c| c.geometry == g))
+                .collect()
+        })
+        .collect();
+    let combinations = per_object
+        .iter()
+        .try_fold(1usize, |n, g| n.checked_mul(g.len()))
+        .filter(|&n| n <= MAX_ASSIGNMENTS);
+    if combinations.is_none() {
+        let mut out: Vec<Vec<Geometry>> = Vec::new();
+        for want in Geometry::ALL {
+            let a: Vec<Geometry> = per_object
+                .iter()
+                .map(|gs| if gs.contains(&want) { want } else { gs[0] })
+                .collect();
+            if !out.contains(&a) {
+                out.push(a);
+            }
+        }
+        return out;
+    }
+    // Cartesian product, the first object varying slowest.
+    let mut out: Vec<Vec<Geometry>> = vec![Vec::new()];
+    for gs in &per_object {
+        out = out
+            .into_iter()
+            .flat_map(|prefix| {
+                gs.iter().map(move |&g| {
+                    let mut a = prefix.clone();
+                    a.push(g);
+                    a
+                })
+            })
+            .collect();
+    }
+    out
+}
+
+/// The SLSQP plan with object i restricted to geometry `assignment[i]`.
+fn solve(problem: &Problem, assignment: &[Geometry]) -> Result<Plan, PlanError> {
     let models = problem
         .objects
         .iter()
-        .map(Model::new)
+        .zip(assignment)
+        .map(|(o, &geometry)| Model::new(o, geometry))
         .collect::<Result<Vec<_>, _>>()?;
     let n = models.len();
     let budget = (problem.budget_units as f64 * problem.unit.0 as f64).max(1.0);
@@ -93,8 +182,16 @@ pub(crate) fn plan(problem: &Problem) -> Result<Plan, PlanError> {
         .iter()
         .zip(&models)
         .zip(&points)
-        .map(|((o, m), &(g, p, _))| nearest(o, m, g, p, f64::INFINITY).unwrap_or(0))
-        .collect();
+        .map(|((o, m), &(g, p, _))| {
+            nearest(o, m, g, p, f64::INFINITY).ok_or_else(|| {
+                PlanError::Internal(format!(
+                    "slsqp: object `{}` has no {} configuration",
+                    o.name(),
+                    m.geometry
+                ))
+            })
+        })
+        .collect::<Result<_, _>>()?;
     let plan = problem.plan(Method::Slsqp, &rounded)?;
     if plan.feasible {
         return Ok(plan);
@@ -121,8 +218,9 @@ pub(crate) fn plan(problem: &Problem) -> Result<Plan, PlanError> {
     )))
 }
 
-/// Position of the configuration nearest (g, p) in normalised distance
-/// among those of at most `max_size` bytes; ties to smaller size, index.
+/// Position of the configuration of the model's geometry nearest (g, p) in
+/// normalised distance among those of at most `max_size` bytes; ties to
+/// smaller size, index.
 fn nearest(o: &Obj, m: &Model, g: f64, p: f64, max_size: f64) -> Option<usize> {
     let (rg, rp) = m.ranges();
     let key = |c: &Cand| {
@@ -133,6 +231,7 @@ fn nearest(o: &Obj, m: &Model, g: f64, p: f64, max_size: f64) -> Option<usize> {
     o.cands
         .iter()
         .enumerate()
+        .filter(|(_, c)| c.geometry == m.geometry)
         // Profile sizes were rounded up to whole bytes: compare likewise.
         .filter(|(_, c)| c.size.0 as f64 <= max_size.ceil())
         .min_by(|(_, a), (_, b)| {
@@ -152,8 +251,14 @@ struct Eval {
     dq: (f64, f64),
 }
 
-/// A continuous model of one object.
-enum Model<'s> {
+/// A continuous model of one object in one geometry.
+struct Model<'s> {
+    geometry: Geometry,
+    curves: Curves<'s>,
+}
+
+/// Its size and quality as continuous functions of (g, p).
+enum Curves<'s> {
     Profile {
         profile: &'s Profile,
         g: (f64, f64),
@@ -175,23 +280,45 @@ fn range(values: impl Iterator<Item = u32>) -> (f64, f64) {
 }
 
 impl<'s> Model<'s> {
-    fn new(o: &Obj<'s>) -> Result<Model<'s>, PlanError> {
-        if let Some(profile) = &o.entry.profile {
-            return Ok(Model::Profile {
+    fn new(o: &Obj<'s>, geometry: Geometry) -> Result<Model<'s>, PlanError> {
+        Ok(Model {
+            geometry,
+            curves: Curves::new(o, geometry)?,
+        })
+    }
+
+    fn ranges(&self) -> (f64, f64) {
+        self.curves.ranges()
+    }
+
+    fn gp(&self, xg: f64, xp: f64) -> (f64, f64) {
+        self.curves.gp(xg, xp)
+    }
+
+    fn eval(&self, xg: f64, xp: f64) -> Eval {
+        self.curves.eval(xg, xp)
+    }
+}
+
+impl<'s> Curves<'s> {
+    fn new(o: &Obj<'s>, geometry: Geometry) -> Result<Curves<'s>, PlanError> {
+        if let Some(profile) = o.entry.profile_of(geometry) {
+            return Ok(Curves::Profile {
                 profile,
                 g: range(profile.g.iter().copied()),
                 p: range(profile.p.iter().copied()),
             });
         }
-        let mut gs: Vec<u32> = o.cands.iter().map(|c| c.g).collect();
-        let mut ps: Vec<u32> = o.cands.iter().map(|c| c.p).collect();
+        let cands: Vec<&Cand> = o.cands.iter().filter(|c| c.geometry == geometry).collect();
+        let mut gs: Vec<u32> = cands.iter().map(|c| c.g).collect();
+        let mut ps: Vec<u32> = cands.iter().map(|c| c.p).collect();
         gs.sort_unstable();
         gs.dedup();
         ps.sort_unstable();
         ps.dedup();
         let mut size = vec![f64::NAN; gs.len() * ps.len()];
         let mut quality = vec![f64::NAN; gs.len() * ps.len()];
-        for c in &o.cands {
+        for c in &cands {
             let ig = gs.binary_search(&c.g).unwrap_or(0);
             let ip = ps.binary_search(&c.p).unwrap_or(0);
             size[ig * ps.len() + ip] = c.size.0 as f64;
@@ -199,14 +326,15 @@ impl<'s> Model<'s> {
         }
         if size.iter().any(|v| v.is_nan()) {
             return Err(PlanError::Slsqp(format!(
-                "object `{}`: the continuous relaxation needs a profile or a full g × p grid of configurations; it has {} of {} × {}",
+                "object `{}`: the continuous relaxation needs a profile or a full g × p grid of configurations{}; it has {} of {} × {}",
                 o.name(),
-                o.cands.len(),
+                if geometry.is_planes() { String::new() } else { format!(" ({geometry})") },
+                cands.len(),
                 gs.len(),
                 ps.len()
             )));
         }
-        Ok(Model::Grid {
+        Ok(Curves::Grid {
             gs: gs.into_iter().map(f64::from).collect(),
             ps: ps.into_iter().map(f64::from).collect(),
             size,
@@ -216,8 +344,8 @@ impl<'s> Model<'s> {
 
     fn bounds(&self) -> ((f64, f64), (f64, f64)) {
         match self {
-            Model::Profile { g, p, .. } => (*g, *p),
-            Model::Grid { gs, ps, .. } => ((gs[0], gs[gs.len() - 1]), (ps[0], ps[ps.len() - 1])),
+            Curves::Profile { g, p, .. } => (*g, *p),
+            Curves::Grid { gs, ps, .. } => ((gs[0], gs[gs.len() - 1]), (ps[0], ps[ps.len() - 1])),
         }
     }
 
@@ -238,7 +366,7 @@ impl<'s> Model<'s> {
         let (sg, sp) = (g1 - g0, p1 - p0);
         let (g, p) = self.gp(xg.clamp(0.0, 1.0), xp.clamp(0.0, 1.0));
         match self {
-            Model::Profile { profile, .. } => {
+            Curves::Profile { profile, .. } => {
                 let (dsg, dsp) = profile.size_gradient(g, p);
                 let (dqg, dqp) = profile.quality_gradient(g, p);
                 Eval {
@@ -248,7 +376,7 @@ impl<'s> Model<'s> {
                     dq: (dqg * sg, dqp * sp),
                 }
             }
-            Model::Grid {
+            Curves::Grid {
                 gs,
                 ps,
                 size,

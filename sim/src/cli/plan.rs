@@ -1,5 +1,6 @@
-//! `nerflex plan`: choose one (g, p) configuration per object under a
-//! device's memory budget, and print the plan as a table or JSON.
+//! `nerflex plan`: choose one (g, p, geometry) configuration per object
+//! under a device's memory budget, and print the plan as a table or JSON
+//! (both name each object's geometry).
 //!
 //! Infeasible plans exit non-zero with the error text (for `block` and
 //! `single`, which always have a plan, after printing it with
@@ -57,7 +58,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| format!("{} plan for {}", args.method, args.scene.display()))?;
     plan.device = Some(device.name.clone());
     let text = if args.json {
-        let mut s = serde_json::to_string_pretty(&plan)?;
+        let mut s = serde_json::to_string_pretty(&json(&plan)?)?;
         s.push('\n');
         s
     } else {
@@ -78,6 +79,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// The plan as JSON, every object naming its geometry (the plan's own
+/// serialization leaves out `planes`, the default).
+pub fn json(plan: &Plan) -> anyhow::Result<serde_json::Value> {
+    let mut v = serde_json::to_value(plan)?;
+    let objects = v
+        .get_mut("objects")
+        .and_then(serde_json::Value::as_array_mut)
+        .context("a plan serializes with an objects list")?;
+    for (j, o) in objects.iter_mut().zip(&plan.objects) {
+        if let Some(map) = j.as_object_mut() {
+            map.insert("geometry".into(), o.geometry.name().into());
+        }
+    }
+    Ok(v)
 }
 
 /// The plan as a human-readable table.
@@ -102,24 +119,26 @@ pub fn table(plan: &Plan, budget: Budget) -> String {
         .max("object".len());
     let _ = writeln!(
         s,
-        "{:<width$}  {:>5}  {:>4}  {:>10}  {:>7}",
-        "object", "g", "p", "size MB", "SSIM"
+        "{:<width$}  {:>5}  {:>4}  {:<8}  {:>10}  {:>7}",
+        "object", "g", "p", "geometry", "size MB", "SSIM"
     );
     for o in &plan.objects {
         let _ = writeln!(
             s,
-            "{:<width$}  {:>5}  {:>4}  {:>10.2}  {:>7.4}",
+            "{:<width$}  {:>5}  {:>4}  {:<8}  {:>10.2}  {:>7.4}",
             o.name,
             o.g,
             o.p,
+            o.geometry.name(),
             Bytes(o.size_bytes).as_mb(),
             o.quality
         );
     }
     let _ = writeln!(
         s,
-        "{:<width$}  {:>5}  {:>4}  {:>10.2}  {:>7.4}",
+        "{:<width$}  {:>5}  {:>4}  {:<8}  {:>10.2}  {:>7.4}",
         "total",
+        "",
         "",
         "",
         Bytes(plan.total_size_bytes).as_mb(),

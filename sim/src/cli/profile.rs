@@ -6,6 +6,10 @@
 //! - `fit --samples FILE.csv [--object NAME]… --out profiles.json`: fits
 //!   both models of each object and writes a scene file in profile form
 //!   (`nerflex plan --scene profiles.json` reads it).
+//! - `combine --planes profiles.json --mesh-profiles mesh/profiles.json
+//!   --out scene.json`: one scene whose objects carry both geometries'
+//!   profiles (`"profiles": {"planes", "mesh"}`), so the planner chooses
+//!   the geometry per object.
 //! - `accuracy --samples FILE.csv [--train-on leave-one-out|variable-step]
 //!   [--max-size-mb MB] [--max-g G] [--plots DIR]`: prediction errors beside
 //!   the paper's (leave-one-out, or trained on the variable-step points
@@ -17,6 +21,8 @@ use crate::fit::{
     sampling::{self, IntRange, Step},
     FamilyChoice, ObjectFit,
 };
+use crate::geometry::Geometry;
+use crate::scene_file::{self, ConfigEntry, Profile, Scene, SceneObject};
 use anyhow::Context;
 use nerflex_core::units::BYTES_PER_MB;
 use std::fmt::Write as _;
@@ -40,6 +46,23 @@ pub enum Command {
     Fit(FitArgs),
     /// Leave-one-out accuracy of the fitted models; fitted-curve pictures.
     Accuracy(AccuracyArgs),
+    /// Join planes and mesh profiles of the same objects into one scene.
+    Combine(CombineArgs),
+}
+
+/// Flags of `nerflex profile combine`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct CombineArgs {
+    /// Planes profiles: a scene file in profile form (`fit` on a planes sweep).
+    #[arg(long, value_name = "FILE.json")]
+    pub planes: PathBuf,
+    /// Mesh profiles of the same objects: a scene file in profile form
+    /// (`fit` on a `nerflex bake --surface mesh` sweep).
+    #[arg(long, value_name = "FILE.json")]
+    pub mesh_profiles: PathBuf,
+    /// Output scene file (objects with `"profiles": {"planes", "mesh"}`).
+    #[arg(long, value_name = "FILE.json")]
+    pub out: PathBuf,
 }
 
 /// Flags of `nerflex profile samples`.
@@ -145,6 +168,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Command::Samples(a) => samples_report(a)?,
         Command::Fit(a) => fit_report(a)?,
         Command::Accuracy(a) => accuracy_report(a)?,
+        Command::Combine(a) => combine_report(a)?,
     };
     print!("{text}");
     Ok(())
@@ -371,4 +395,105 @@ pub fn accuracy_report(args: &AccuracyArgs) -> anyhow::Result<String> {
         }
     }
     Ok(out)
+}
+
+/// Joins the two files' profiles, writes `--out` (only when every check
+/// passed), and returns what `nerflex profile combine` prints.
+pub fn combine_report(args: &CombineArgs) -> anyhow::Result<String> {
+    let planes = scene_file::load(&args.planes).context("--planes")?;
+    let mesh = scene_file::load(&args.mesh_profiles).context("--mesh-profiles")?;
+    let scene = combine(&planes, &mesh).map_err(|e| {
+        anyhow::anyhow!(
+            "--planes {} / --mesh-profiles {}: {e}",
+            args.planes.display(),
+            args.mesh_profiles.display()
+        )
+    })?;
+    let text = serde_json::to_string_pretty(&scene.to_json())? + "\n";
+    // Read back what is written, so a file this writes always plans.
+    scene_file::parse(&text, &args.out.display().to_string())?;
+    fit::write_atomic(&args.out, text.as_bytes())
+        .with_context(|| format!("cannot write {}", args.out.display()))?;
+    let mut out = String::new();
+    for o in &scene.objects {
+        let _ = writeln!(
+            out,
+            "{}: {} configurations ({} planes, {} mesh)",
+            o.name,
+            o.configs.len(),
+            o.configs
+                .iter()
+                .filter(|c| c.geometry == Geometry::Planes)
+                .count(),
+            o.configs
+                .iter()
+                .filter(|c| c.geometry == Geometry::Mesh)
+                .count()
+        );
+    }
+    let _ = writeln!(out, "wrote {}", args.out.display());
+    Ok(out)
+}
+
+/// `planes`' objects with `mesh`'s profile of the same name added as their
+/// mesh profile. Both must be planes-profile scenes (as `fit` writes them)
+/// with the same object names.
+pub fn combine(planes: &Scene, mesh: &Scene) -> Result<Scene, String> {
+    let profile_of = |o: &SceneObject, flag: &str| -> Result<Profile, String> {
+        match (&o.profile, &o.mesh_profile) {
+            (Some(p), None) => Ok(p.clone()),
+            _ => Err(format!(
+                "{flag}: object `{}` is not in single-profile form (one \"profile\", as `nerflex profile fit` writes it); it has {}",
+                o.name,
+                if o.profile.is_none() && o.mesh_profile.is_none() {
+                    "a configuration table"
+                } else {
+                    "several profiles"
+                }
+            )),
+        }
+    };
+    let names = |s: &Scene| s.objects.iter().map(|o| o.name.clone()).collect::<Vec<_>>();
+    let mut objects = Vec::with_capacity(planes.objects.len());
+    for o in &planes.objects {
+        let planes_profile = profile_of(o, "--planes")?;
+        let m = mesh
+            .objects
+            .iter()
+            .find(|m| m.name == o.name)
+            .ok_or_else(|| {
+                format!(
+                    "--mesh-profiles has no object `{}` (it has: {})",
+                    o.name,
+                    names(mesh).join(", ")
+                )
+            })?;
+        let mesh_profile = profile_of(m, "--mesh-profiles")?;
+        let mut configs = o.configs.clone();
+        configs.extend(m.configs.iter().map(|c| ConfigEntry {
+            geometry: Geometry::Mesh,
+            ..*c
+        }));
+        objects.push(SceneObject {
+            name: o.name.clone(),
+            configs,
+            profile: Some(planes_profile),
+            mesh_profile: Some(mesh_profile),
+        });
+    }
+    if let Some(extra) = mesh
+        .objects
+        .iter()
+        .find(|m| !planes.objects.iter().any(|o| o.name == m.name))
+    {
+        return Err(format!(
+            "--planes has no object `{}` (it has: {})",
+            extra.name,
+            names(planes).join(", ")
+        ));
+    }
+    Ok(Scene {
+        objects,
+        single: planes.single.clone(),
+    })
 }

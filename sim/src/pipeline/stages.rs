@@ -25,6 +25,7 @@ use crate::capture::Capture;
 use crate::device::Device;
 use crate::eval::scale::Configs;
 use crate::fit;
+use crate::geometry::Geometry;
 use crate::metrics::{Lpips, Metrics};
 use crate::procedural::{arrange, make_capture, CaptureSpec, Layout, Preset, RenderOptions};
 use crate::render::{try_render_scene, RenderOptions as DrawOptions};
@@ -764,6 +765,7 @@ pub fn baseline_plan(
             p,
             size_bytes: b.sample.size_bytes,
             quality: b.sample.ssim,
+            geometry: Geometry::Planes,
             config_index: None,
         });
     }
@@ -788,6 +790,20 @@ pub fn baseline_plan(
     ))
 }
 
+/// Errors unless every planned object is planes: the store bakes and keys
+/// (views, g, p) only, so a mesh choice must not come back as a planes
+/// bake. The pipeline's own profiles are planes, so its plans never pick
+/// mesh; a plan from a two-geometry scene would.
+fn planes_only(plan: &Plan) -> anyhow::Result<()> {
+    match plan.objects.iter().find(|o| !o.geometry.is_planes()) {
+        None => Ok(()),
+        Some(o) => anyhow::bail!(
+            "{} plan: object `{}` is planned as {} (g {}, p {}), but the pipeline bakes planes only; bake it with `nerflex bake --surface {}`",
+            plan.method, o.name, o.geometry, o.g, o.p, o.geometry
+        ),
+    }
+}
+
 /// Stage 3: bakes the plan's configurations (or finds them in the store),
 /// renders the capture's held-out views with all of them and measures.
 pub fn realise(
@@ -797,6 +813,7 @@ pub fn realise(
     lpips: Option<&Lpips>,
     progress: &dyn Progress,
 ) -> anyhow::Result<Realised> {
+    planes_only(plan)?;
     let store = opts.bake_store();
     progress.stage(
         &format!("baking the {} plan", plan.method),
@@ -1053,6 +1070,38 @@ mod tests {
     use super::*;
     use crate::camera::{Camera, Intrinsics};
     use image::{GrayImage, Luma, RgbaImage};
+
+    #[test]
+    fn a_mesh_choice_is_an_error_not_a_planes_bake() {
+        let object = |name: &str, geometry| PlannedObject {
+            name: name.into(),
+            g: 256,
+            p: 5,
+            size_bytes: 1,
+            quality: 0.9,
+            geometry,
+            config_index: None,
+        };
+        let mut plan = Plan {
+            method: Method::Dp,
+            device: None,
+            budget_bytes: 10,
+            feasible: true,
+            objects: vec![object("chair", Geometry::Planes)],
+            total_size_bytes: 2,
+            total_quality: 1.8,
+            total_quality_q: Default::default(),
+            total_units: 0,
+            budget_units: 0,
+            unit_bytes: 1,
+        };
+        assert!(planes_only(&plan).is_ok());
+        plan.objects.push(object("lego", Geometry::Mesh));
+        assert_eq!(
+            planes_only(&plan).unwrap_err().to_string(),
+            "dp plan: object `lego` is planned as mesh (g 256, p 5), but the pipeline bakes planes only; bake it with `nerflex bake --surface mesh`"
+        );
+    }
 
     #[test]
     fn next_budget_takes_the_overshoot_off_the_planning_budget() {

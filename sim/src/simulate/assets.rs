@@ -47,6 +47,18 @@ impl AssetScene {
         let mut assets = Vec::new();
         let mut bytes = Vec::new();
         for o in &plan.objects {
+            // The layout has no geometry (`nerflex run` bakes planes): a
+            // mesh choice must not load the planes asset of its (g, p).
+            if !o.geometry.is_planes() {
+                anyhow::bail!(
+                    "`{}` is planned as {} (g {}, p {}), but asset folders ({}) hold planes bakes only",
+                    o.name,
+                    o.geometry,
+                    o.g,
+                    o.p,
+                    root.display()
+                );
+            }
             let dir = asset_dir(root, &o.name, o.g, o.p);
             if !dir.is_dir() {
                 anyhow::bail!(
@@ -146,4 +158,48 @@ pub fn quads_in_view(assets: &[&Asset], camera: &Camera) -> u64 {
                 .count() as u64
         })
         .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::baselines::{Method, PlannedObject};
+    use crate::geometry::Geometry;
+
+    #[test]
+    fn a_mesh_choice_does_not_load_a_planes_asset() {
+        let dir = tempfile::tempdir().unwrap();
+        // The planes asset folder of (256, 5) exists (empty), so only the
+        // geometry check can refuse it.
+        std::fs::create_dir_all(asset_dir(dir.path(), "lego", 256, 5)).unwrap();
+        let plan = Plan {
+            method: Method::Dp,
+            device: None,
+            budget_bytes: 1,
+            feasible: true,
+            objects: vec![PlannedObject {
+                name: "lego".into(),
+                g: 256,
+                p: 5,
+                size_bytes: 1,
+                quality: 0.9,
+                geometry: Geometry::Mesh,
+                config_index: None,
+            }],
+            total_size_bytes: 1,
+            total_quality: 0.9,
+            total_quality_q: Default::default(),
+            total_units: 0,
+            budget_units: 0,
+            unit_bytes: 1,
+        };
+        let e = AssetScene::load_plan(&plan, dir.path())
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            e.starts_with("`lego` is planned as mesh (g 256, p 5)"),
+            "{e}"
+        );
+    }
 }
