@@ -51,8 +51,9 @@ pub use init::FitSettings;
 /// per training pixel; lego was measured with two).
 pub const MAX_DEPTH_CARVE_ROUNDS: u32 = 8;
 
-/// Version of the trained baker: part of sweep cache keys.
-pub const TRAINED_BAKER_VERSION: u32 = 2;
+/// Version of the trained baker: part of sweep cache keys (3: session 16's
+/// visibility rounds and their fixed-point judgement).
+pub const TRAINED_BAKER_VERSION: u32 = 3;
 
 /// The geometry a bake extracts from the field.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -438,8 +439,22 @@ pub fn bake(
     // again (what they hid may be more of it).
     let mut dropped_quads = 0u64;
     let mut round = 0;
+    // With visibility rounds and no pass after this one, the first round's
+    // two layers are rasterized here and give its G-buffers: one pass less.
+    let peel_first = params.visibility.rounds > 0
+        && params.carve_rounds == 0
+        && params.depth_carve_rounds == 0
+        && !params.depth_correct;
+    let mut layers: Option<visibility::Peel> = None;
     let gb = loop {
-        let gb = gbuffer::of_geometry(&geo, p, views, params.supersample)?;
+        let gb = if peel_first {
+            let peeled = visibility::peel(&geo, p, views, params.supersample)?;
+            let (gb, _) = peeled.gbuffers(&geo.opacity, params.supersample);
+            layers = Some(peeled);
+            gb
+        } else {
+            gbuffer::of_geometry(&geo, p, views, params.supersample)?
+        };
         round += 1;
         if round > params.carve_rounds {
             break gb;
@@ -563,7 +578,6 @@ pub fn bake(
         }
         drop(gb);
         drop(slot_of);
-        drop(new_index);
         trained_texels = slot_texel.len() as u64;
         let taps: Vec<featgrid::Taps> = {
             use rayon::prelude::*;
@@ -622,7 +636,15 @@ pub fn bake(
         }
         round += 1;
         let v0 = Instant::now();
-        let peeled = visibility::peel(&geo, p, views, params.supersample)?;
+        let mut unkept = 0;
+        let peeled = match layers.take() {
+            Some(mut pe) => {
+                unkept = pe.renumber(&new_index, p2);
+                pe
+            }
+            None => visibility::peel(&geo, p, views, params.supersample)?,
+        };
+        drop(new_index);
         let v1 = Instant::now();
         let r = visibility::prune(
             &mut geo,
@@ -644,6 +666,7 @@ pub fn bake(
             error_before: r.error_before,
             error_change: visibility.error_change + r.error_change,
             lost_subsamples: visibility.lost_subsamples + lost,
+            unkept_behind: visibility.unkept_behind + unkept,
             peel_s: visibility.peel_s + (v1 - v0).as_secs_f64(),
             judge_s: visibility.judge_s + v1.elapsed().as_secs_f64(),
         };

@@ -14,16 +14,16 @@
 //! bake re-rasterizes and fine-tunes after each round.
 
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
 
 use super::super::{BakeError, BakeView};
 use super::extract::Geometry;
 use super::featgrid::FeatureGrid;
 use super::gbuffer::{self, Subsamples, NO_TEXEL, SUBSAMPLES, TILE};
-use super::net::{self, FEATURES};
+use super::net::{self, FEATURES, LANES};
 use crate::render::{supersampled_view, view_of};
 use nerflex_core::raster::{AlphaBits, TileRenderer, SUPERSAMPLE};
-use nerflex_core::shader::MlpWeights;
+use nerflex_core::shader::{MlpWeights, INPUTS};
 
 /// One covered pixel of a training view, with two layers: per subsample
 /// position (not compacted), the texel it shows and the texel behind that
@@ -68,8 +68,8 @@ pub struct VisibilitySettings {
 impl Default for VisibilitySettings {
     fn default() -> Self {
         Self {
-            rounds: 0,
-            margin: 0.0,
+            rounds: 1,
+            margin: 0.01,
         }
     }
 }
@@ -91,6 +91,10 @@ pub struct VisibilityReport {
     /// Subsamples whose front texel and the one behind it both went: the
     /// next fine-tune counts them uncovered ([`Peel::gbuffers`]).
     pub lost_subsamples: u64,
+    /// Subsamples whose layer behind lay on a quad no pixel shows first,
+    /// dropped before the judgement (the first round's layers are
+    /// rasterized before that drop): judged as if nothing were behind.
+    pub unkept_behind: u64,
     /// Wall time of the two-layer rasterizations, seconds.
     pub peel_s: f64,
     /// … of the judgements and the next G-buffers.
@@ -208,63 +212,125 @@ impl Peel {
     /// and the number of such subsamples.
     pub fn gbuffers(&self, opacity: &[bool], supersample: bool) -> (gbuffer::GBuffers, u64) {
         let opaque = |t: u32| opacity.get(t as usize) == Some(&true);
-        let mut g = gbuffer::GBuffers::default();
-        let mut lost = 0u64;
+        let mut starts = Vec::with_capacity(self.per_view.len());
         let mut at = 0;
         for &n in &self.per_view {
-            let mut count = 0;
-            for px in &self.pixels[at..at + n] {
-                let mut shown = [NO_TEXEL; SUBSAMPLES];
-                let mut k = 0;
-                for (&f, &b) in px.front.iter().zip(&px.behind) {
-                    let t = if opaque(f) {
-                        f
-                    } else if f == NO_TEXEL {
-                        continue;
-                    } else if opaque(b) {
-                        b
-                    } else if b == NO_TEXEL {
-                        // Nothing behind: the background shows.
-                        continue;
-                    } else {
-                        lost += 1;
-                        continue;
-                    };
-                    shown[k] = t;
-                    k += 1;
-                }
-                if k == 0 {
-                    continue;
-                }
-                if px.cov < 128 {
-                    g.background.extend_from_slice(&shown[..k]);
-                    continue;
-                }
-                g.pixels.push(gbuffer::GPixel {
-                    texel: shown[0],
-                    dir: px.dir,
-                    target: px.target,
-                });
-                if supersample {
-                    g.subsamples.push(shown);
-                }
-                count += 1;
-            }
-            g.per_view.push(count);
+            starts.push(at);
             at += n;
+        }
+        type ViewPart = (Vec<gbuffer::GPixel>, Vec<Subsamples>, Vec<u32>, u64);
+        let parts: Vec<ViewPart> = starts
+            .par_iter()
+            .zip(&self.per_view)
+            .map(|(&at, &n)| {
+                let (mut pixels, mut subs, mut background, mut lost) =
+                    (Vec::new(), Vec::new(), Vec::new(), 0u64);
+                for px in &self.pixels[at..at + n] {
+                    let mut shown = [NO_TEXEL; SUBSAMPLES];
+                    let mut k = 0;
+                    for (&f, &b) in px.front.iter().zip(&px.behind) {
+                        let t = if opaque(f) {
+                            f
+                        } else if f == NO_TEXEL {
+                            continue;
+                        } else if opaque(b) {
+                            b
+                        } else if b == NO_TEXEL {
+                            // Nothing behind: the background shows.
+                            continue;
+                        } else {
+                            lost += 1;
+                            continue;
+                        };
+                        shown[k] = t;
+                        k += 1;
+                    }
+                    if k == 0 {
+                        continue;
+                    }
+                    if px.cov < 128 {
+                        background.extend_from_slice(&shown[..k]);
+                        continue;
+                    }
+                    pixels.push(gbuffer::GPixel {
+                        texel: shown[0],
+                        dir: px.dir,
+                        target: px.target,
+                    });
+                    if supersample {
+                        subs.push(shown);
+                    }
+                }
+                (pixels, subs, background, lost)
+            })
+            .collect();
+        let mut g = gbuffer::GBuffers::default();
+        let mut lost = 0;
+        for (pixels, subs, background, l) in parts {
+            g.per_view.push(pixels.len());
+            g.pixels.extend(pixels);
+            g.subsamples.extend(subs);
+            g.background.extend(background);
+            lost += l;
         }
         (g, lost)
     }
+
+    /// Renumbers the texels after the quads were re-indexed (`new_index`
+    /// per old quad; `u32::MAX`: dropped, its texels then none). Returns
+    /// how many texels behind were on a dropped quad.
+    pub fn renumber(&mut self, new_index: &[u32], p2: usize) -> u64 {
+        let map = |t: &mut u32| -> u64 {
+            if *t == NO_TEXEL {
+                return 0;
+            }
+            let q = new_index.get(*t as usize / p2).copied().unwrap_or(u32::MAX);
+            if q == u32::MAX {
+                *t = NO_TEXEL;
+                return 1;
+            }
+            *t = q * p2 as u32 + *t % p2 as u32;
+            0
+        };
+        self.pixels
+            .par_iter_mut()
+            .map(|px| {
+                px.front.iter_mut().map(map).sum::<u64>();
+                px.behind.iter_mut().map(map).sum::<u64>()
+            })
+            .sum()
+    }
 }
 
-/// The 8-bit features of every opaque texel of `geo` (the lattice read at
-/// its point, as the atlas will store it); zeros elsewhere.
-fn texel_bytes(geo: &Geometry, p: u32, grid: &FeatureGrid) -> Vec<[u8; FEATURES]> {
+/// The 8-bit features of every opaque texel of `geo` that `pixels` show
+/// or hide (the lattice read at its point, as the atlas will store it);
+/// zeros elsewhere.
+fn texel_bytes(
+    geo: &Geometry,
+    p: u32,
+    grid: &FeatureGrid,
+    pixels: &[PeelPixel],
+) -> Vec<[u8; FEATURES]> {
+    let needed: Vec<AtomicBool> = (0..geo.opacity.len())
+        .map(|_| AtomicBool::new(false))
+        .collect();
+    pixels.par_iter().for_each(|px| {
+        for &t in px.front.iter().chain(&px.behind) {
+            if let Some(n) = needed.get(t as usize) {
+                n.store(true, Ordering::Relaxed);
+            }
+        }
+    });
     geo.opacity
         .par_iter()
+        .zip(&needed)
         .enumerate()
-        .map(|(t, &o)| {
-            let Some(tp) = o.then(|| grid.taps(geo.texel_point(p, t as u32))).flatten() else {
+        .map(|(t, (&o, n))| {
+            let wanted = o && n.load(Ordering::Relaxed);
+            let Some(tp) = wanted
+                .then(|| grid.taps(geo.texel_point(p, t as u32)))
+                .flatten()
+            else {
                 return [0; FEATURES];
             };
             let f = tp.gather(&grid.values);
@@ -273,18 +339,19 @@ fn texel_bytes(geo: &Geometry, p: u32, grid: &FeatureGrid) -> Vec<[u8; FEATURES]
         .collect()
 }
 
-/// Squared error (RGB in [0, 1], summed over channels) of a pixel showing
-/// `texels` (per subsample position, [`NO_TEXEL`] uncovered), shaded as the
-/// renderer does: the byte mean of the covered texels' features, the MLP,
-/// its 8-bit output blended over white by coverage.
-fn pixel_error(
-    texels: &Subsamples,
-    samples: usize,
-    bytes: &[[u8; FEATURES]],
-    mlp: &MlpWeights,
-    dir: [f32; 3],
-    target: [f32; 3],
-) -> f32 {
+/// One shading of a pixel to judge: its features' bytes summed over `n`
+/// covered subsamples of `samples`, and the texel whose removal it tests
+/// ([`NO_TEXEL`]: the pixel as it is).
+#[derive(Clone, Copy)]
+struct Shading {
+    sum: [u32; FEATURES],
+    n: u32,
+    texel: u32,
+}
+
+/// The shading of a pixel showing `texels` (per subsample position,
+/// [`NO_TEXEL`] uncovered).
+fn shading(texels: &Subsamples, samples: usize, bytes: &[[u8; FEATURES]], texel: u32) -> Shading {
     let mut sum = [0u32; FEATURES];
     let mut n = 0u32;
     for &t in texels.iter().take(samples) {
@@ -295,18 +362,50 @@ fn pixel_error(
             n += 1;
         }
     }
-    let colour = if n == 0 {
-        [1.0; 3]
-    } else {
-        // The rounded byte mean, as `nerflex_core::raster::mean_texel`.
-        let f: [f32; FEATURES] =
-            std::array::from_fn(|c| net::decode(c, ((sum[c] + n / 2) / n) as u8));
-        let y = net::to_u8(net::forward(mlp, &net::input(&f, dir)).y);
-        let cov = n as f32 / samples as f32;
-        y.map(|v| f32::from(v) / 255.0 * cov + (1.0 - cov))
-    };
-    (0..3).map(|k| (colour[k] - target[k]).powi(2)).sum()
+    Shading { sum, n, texel }
 }
+
+/// Squared errors (RGB in [0, 1], summed over channels) of [`LANES`]
+/// shadings of pixels `px` (lane `l` of pixel `px[l]`), shaded as the
+/// renderer does: the rounded byte mean of the covered texels' features
+/// (`nerflex_core::raster::mean_texel`), the MLP, its 8-bit output blended
+/// over white by coverage; no covered texel shows white.
+fn errors8(
+    sh: &[Shading; LANES],
+    px: &[&PeelPixel; LANES],
+    samples: usize,
+    mlp: &MlpWeights,
+) -> [f32; LANES] {
+    let mut x = [[0f32; LANES]; INPUTS];
+    for l in 0..LANES {
+        let n = sh[l].n.max(1);
+        for c in 0..FEATURES {
+            x[c][l] = net::decode(c, ((sh[l].sum[c] + n / 2) / n) as u8);
+        }
+        for k in 0..3 {
+            x[FEATURES + k][l] = px[l].dir[k];
+        }
+    }
+    let y = net::forward8(mlp, &x).y;
+    std::array::from_fn(|l| {
+        let cov = sh[l].n as f32 / samples as f32;
+        (0..3)
+            .map(|k| {
+                let c = if sh[l].n == 0 {
+                    1.0
+                } else {
+                    let v = (y[k][l].clamp(0.0, 1.0) * 255.0).round();
+                    v / 255.0 * cov + (1.0 - cov)
+                };
+                (c - px[l].target[k]).powi(2)
+            })
+            .sum()
+    })
+}
+
+/// Fixed-point units of the per-texel error sums (exact, so their sum
+/// does not depend on the order the threads add in).
+const DELTA_UNIT: f64 = (1u64 << 32) as f64;
 
 /// One round: judges every texel `pixels` show first and makes the ones
 /// whose removal lowers their pixels' error transparent in `geo`.
@@ -320,42 +419,59 @@ pub fn prune(
     settings: &VisibilitySettings,
 ) -> VisibilityReport {
     let samples = if supersample { SUBSAMPLES } else { 1 };
-    let bytes = texel_bytes(geo, p, grid);
-    // Per texel: the summed change of squared error (f32 bits) and a
-    // "shown" flag.
-    let delta: Vec<AtomicU32> = (0..geo.opacity.len()).map(|_| AtomicU32::new(0)).collect();
-    let shown: Vec<AtomicU32> = (0..geo.opacity.len()).map(|_| AtomicU32::new(0)).collect();
-    let add = |t: u32, d: f32| {
-        let Some(a) = delta.get(t as usize) else {
-            return;
-        };
-        let _ = a.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |v| {
-            Some((f32::from_bits(v) + d).to_bits())
-        });
-        if let Some(s) = shown.get(t as usize) {
-            s.store(1, Ordering::Relaxed);
-        }
-    };
+    let bytes = texel_bytes(geo, p, grid, pixels);
+    // Per texel: the summed change of squared error, and whether a pixel
+    // shows it.
+    let delta: Vec<AtomicI64> = (0..geo.opacity.len()).map(|_| AtomicI64::new(0)).collect();
+    let shown: Vec<AtomicBool> = (0..geo.opacity.len())
+        .map(|_| AtomicBool::new(false))
+        .collect();
     let before: f64 = pixels
-        .par_iter()
-        .map(|px| {
-            let e0 = pixel_error(&px.front, samples, &bytes, mlp, px.dir, px.target);
-            let mut done = [NO_TEXEL; SUBSAMPLES];
-            for (k, &t) in px.front.iter().take(samples).enumerate() {
-                if t == NO_TEXEL || done.contains(&t) {
+        .par_chunks(1024)
+        .map(|chunk| {
+            // Every shading of the chunk's pixels: the pixel as it is,
+            // then once per texel it shows, without it.
+            let mut jobs: Vec<(Shading, usize)> = Vec::with_capacity(chunk.len() * 2);
+            for (i, px) in chunk.iter().enumerate() {
+                jobs.push((shading(&px.front, samples, &bytes, NO_TEXEL), i));
+                let mut done = [NO_TEXEL; SUBSAMPLES];
+                for (k, &t) in px.front.iter().take(samples).enumerate() {
+                    if t == NO_TEXEL || done.contains(&t) {
+                        continue;
+                    }
+                    done[k] = t;
+                    let mut without = px.front;
+                    for (w, &b) in without.iter_mut().zip(&px.behind) {
+                        if *w == t {
+                            *w = b;
+                        }
+                    }
+                    jobs.push((shading(&without, samples, &bytes, t), i));
+                }
+            }
+            let mut errors = vec![0f32; jobs.len()];
+            for (js, es) in jobs.chunks(LANES).zip(errors.chunks_mut(LANES)) {
+                let sh: [Shading; LANES] = std::array::from_fn(|l| js[l.min(js.len() - 1)].0);
+                let px: [&PeelPixel; LANES] =
+                    std::array::from_fn(|l| &chunk[js[l.min(js.len() - 1)].1]);
+                let e = errors8(&sh, &px, samples, mlp);
+                es.copy_from_slice(&e[..es.len()]);
+            }
+            let mut sum = 0f64;
+            let mut e0 = 0f32;
+            for ((sh, _), &e) in jobs.iter().zip(&errors) {
+                if sh.texel == NO_TEXEL {
+                    e0 = e;
+                    sum += f64::from(e);
                     continue;
                 }
-                done[k] = t;
-                let mut without = px.front;
-                for (w, &b) in without.iter_mut().zip(&px.behind) {
-                    if *w == t {
-                        *w = b;
-                    }
+                let t = sh.texel as usize;
+                if let (Some(d), Some(s)) = (delta.get(t), shown.get(t)) {
+                    d.fetch_add((f64::from(e - e0) * DELTA_UNIT) as i64, Ordering::Relaxed);
+                    s.store(true, Ordering::Relaxed);
                 }
-                let e1 = pixel_error(&without, samples, &bytes, mlp, px.dir, px.target);
-                add(t, e1 - e0);
             }
-            f64::from(e0)
+            sum
         })
         .sum();
     let mut report = VisibilityReport {
@@ -364,15 +480,15 @@ pub fn prune(
         ..Default::default()
     };
     for (t, (d, s)) in delta.iter().zip(&shown).enumerate() {
-        if s.load(Ordering::Relaxed) == 0 {
+        if !s.load(Ordering::Relaxed) {
             continue;
         }
         report.shown_texels += 1;
-        let d = f32::from_bits(d.load(Ordering::Relaxed));
-        if d < -settings.margin {
+        let d = d.load(Ordering::Relaxed) as f64 / DELTA_UNIT;
+        if d < -f64::from(settings.margin) {
             geo.opacity[t] = false;
             report.removed_texels += 1;
-            report.error_change += f64::from(d);
+            report.error_change += d;
         }
     }
     report
@@ -496,8 +612,15 @@ mod tests {
             }
         }
         let mlp = mlp();
+        let every = [PeelPixel {
+            front: [0, 1, 2, 3],
+            behind: [4, 5, 6, 7],
+            dir: [0.0, 0.0, 1.0],
+            target: [0.0; 3],
+            cov: 255,
+        }];
         let shade = |t: u32| {
-            let b = texel_bytes(&geo, p, &grid);
+            let b = texel_bytes(&geo, p, &grid, &every);
             let f = std::array::from_fn(|c| net::decode(c, b[t as usize][c]));
             let y = net::to_u8(net::forward(&mlp, &net::input(&f, [0.0, 0.0, 1.0])).y);
             y.map(|v| f32::from(v) / 255.0)
