@@ -370,6 +370,9 @@ fn shading(texels: &Subsamples, samples: usize, bytes: &[[u8; FEATURES]], texel:
 /// renderer does: the rounded byte mean of the covered texels' features
 /// (`nerflex_core::raster::mean_texel`), the MLP, its 8-bit output blended
 /// over white by coverage; no covered texel shows white.
+// Index loops: lanes and channels index several arrays at once (structure
+// of arrays), as the math reads.
+#[allow(clippy::needless_range_loop)]
 fn errors8(
     sh: &[Shading; LANES],
     px: &[&PeelPixel; LANES],
