@@ -68,11 +68,12 @@ pub struct TrainedArgs {
     /// every shown texel whose removal lowers its pixels' error (what lies
     /// behind it shows instead) is made transparent, then the views are
     /// rasterized and fine-tuned again; `--epochs` is split over the
-    /// rounds' fine-tunes. One round is the default: on lego (128, 17)
-    /// +0.39 dB inside the 60 s bake; two gain 0.11 dB more for 20 s more
-    /// (docs/baking.md, "Session 16"); 0 turns it off.
-    #[arg(long, default_value_t = 1)]
-    pub visibility_rounds: u32,
+    /// rounds' fine-tunes [default: 1 on the planes, 0 on the mesh]. On
+    /// lego (128, 17) one round gains +0.39 dB and two 0.11 dB more for
+    /// 20 s more; on the mesh a round loses (lego (256, 5): −0.16 dB), as
+    /// its quads hide little (docs/baking.md, "Session 16").
+    #[arg(long)]
+    pub visibility_rounds: Option<u32>,
     /// A texel goes when its removal lowers its pixels' summed squared
     /// error (RGB in [0, 1]) by more than this.
     #[arg(long, default_value_t = 0.01)]
@@ -164,7 +165,10 @@ impl TrainedArgs {
         p.surface.keep = self.surface_keep;
         p.surface.grow = self.surface_grow;
         p.surface.depth = self.surface_depth;
-        p.visibility.rounds = self.visibility_rounds;
+        p.visibility.rounds = self.visibility_rounds.unwrap_or(match self.surface_kind {
+            GeometryKind::Planes => 1,
+            GeometryKind::Mesh | GeometryKind::MeshFilled => 0,
+        });
         p.visibility.margin = self.visibility_margin;
         p
     }
@@ -288,7 +292,7 @@ pub fn bake(
             s.depth.moved, s.depth.mean_shift, s.depth.crossings
         );
     }
-    if args.visibility_rounds > 0 {
+    if s.visibility.removed_texels > 0 || args.visibility_rounds.is_some_and(|r| r > 0) {
         let v = &s.visibility;
         println!(
             "trained: visibility: {} texels made transparent (estimated error change {:.1} of {:.1}); last round judged {} texels over {} pixels; {} subsamples lost both layers, {} had theirs behind on an unshown quad; peel {:.2} s, judge {:.2} s",
