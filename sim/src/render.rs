@@ -151,16 +151,7 @@ where
         .collect();
     let drawn = projected.len() as u32;
     let t = TILE as u32;
-    let (tx, ty) = (view.width().div_ceil(t), view.height().div_ceil(t));
-    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tx * ty) as usize];
-    for (i, sq) in projected.iter().enumerate() {
-        let [x0, y0, x1, y1] = sq.bbox;
-        for by in y0 / t..=y1 / t {
-            for bx in x0 / t..=x1 / t {
-                bins[(by * tx + bx) as usize].push(i as u32);
-            }
-        }
-    }
+    let (bins, tx) = tile_bins(&projected, view, t);
     // One task per row of tiles, each with one renderer (16 KiB) reused
     // across its tiles: enough tasks to balance, few set-ups.
     let tiles: Vec<TileOut> = bins
@@ -605,4 +596,20 @@ pub fn coverage_scene(assets: &[&Asset], camera: &Camera) -> Result<CoverageStat
 /// [`coverage_scene`] for one asset.
 pub fn coverage(asset: &Asset, camera: &Camera) -> Result<CoverageStats, RasterError> {
     coverage_scene(&[asset], camera)
+}
+
+/// Per `t`-pixel tile of `view` (row-major), the indices of the projected
+/// quads whose box touches it, and the tiles per row.
+pub(crate) fn tile_bins(projected: &[ScreenQuad], view: &View, t: u32) -> (Vec<Vec<u32>>, u32) {
+    let (tx, ty) = (view.width().div_ceil(t), view.height().div_ceil(t));
+    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tx * ty) as usize];
+    for (i, sq) in projected.iter().enumerate() {
+        let [x0, y0, x1, y1] = sq.bbox;
+        for by in y0 / t..=y1 / t {
+            for bx in x0 / t..=x1 / t {
+                bins[(by * tx + bx) as usize].push(i as u32);
+            }
+        }
+    }
+    (bins, tx)
 }

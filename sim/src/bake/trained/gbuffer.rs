@@ -10,7 +10,9 @@ use super::super::atlas::AtlasLayout;
 use super::super::{BakeError, BakeView};
 use crate::asset::Asset;
 use crate::render::{supersampled_view, view_of};
-use nerflex_core::raster::{AlphaBits, Quad as RasterQuad, ScreenQuad, TileRenderer, SUPERSAMPLE};
+use nerflex_core::raster::{
+    AlphaBits, Quad as RasterQuad, ScreenQuad, TileRenderer, View as RasterView, SUPERSAMPLE,
+};
 
 /// Tile side of the G-buffer pass (as the host renderer's).
 pub(super) const TILE: usize = 32;
@@ -96,26 +98,13 @@ fn rasterize_bits(
     views: &[BakeView<'_>],
     supersample: bool,
 ) -> Result<GBuffers, BakeError> {
-    let masks = pages
-        .iter()
-        .map(|(w, h, b)| {
-            AlphaBits::new(*w, *h, b)
-                .map_err(|e| BakeError::BadParam(format!("G-buffer alpha bits: {e:?}")))
-        })
-        .collect::<Result<Vec<_>, _>>()?;
+    let masks = alpha_masks(pages)?;
     type ViewPixels = (Vec<GPixel>, Vec<Subsamples>, Vec<u32>);
     let per: Vec<Result<ViewPixels, BakeError>> = views
         .par_iter()
         .enumerate()
         .map(|(vi, v)| {
-            let bad = |e| BakeError::BadViews(format!("view {vi}: {e:?}"));
-            let out_view = view_of(&v.camera).map_err(bad)?;
-            let view = if supersample {
-                supersampled_view(&v.camera).map_err(bad)?
-            } else {
-                out_view
-            };
-            let ss = if supersample { SUPERSAMPLE } else { 1 };
+            let (out_view, view, ss) = views_of(vi, v, supersample)?;
             let Binned {
                 projected,
                 bins,
@@ -198,6 +187,37 @@ fn rasterize_bits(
     Ok(g)
 }
 
+/// The alpha tests of `pages`.
+pub(super) fn alpha_masks(pages: &[AlphaPage]) -> Result<Vec<AlphaBits<'_>>, BakeError> {
+    pages
+        .iter()
+        .map(|(w, h, b)| {
+            AlphaBits::new(*w, *h, b)
+                .map_err(|e| BakeError::BadParam(format!("G-buffer alpha bits: {e:?}")))
+        })
+        .collect()
+}
+
+/// Training view `vi`'s output view, the view it is rasterized at (2 × 2
+/// finer when `supersample`) and the subsamples per pixel side.
+pub(super) fn views_of(
+    vi: usize,
+    v: &BakeView<'_>,
+    supersample: bool,
+) -> Result<(RasterView, RasterView, u32), BakeError> {
+    let bad = |e| BakeError::BadViews(format!("view {vi}: {e:?}"));
+    let out_view = view_of(&v.camera).map_err(bad)?;
+    if supersample {
+        Ok((
+            out_view,
+            supersampled_view(&v.camera).map_err(bad)?,
+            SUPERSAMPLE,
+        ))
+    } else {
+        Ok((out_view, out_view, 1))
+    }
+}
+
 /// A view's projected quads (ids: their index over all pages, in page
 /// order) and, per [`TILE`]-sized tile, the ones whose box touches it.
 pub(super) struct Binned {
@@ -219,17 +239,7 @@ pub(super) fn bin(quads: &[&[RasterQuad]], view: &nerflex_core::raster::View) ->
             id += 1;
         }
     }
-    let t = TILE as u32;
-    let (tx, ty) = (view.width().div_ceil(t), view.height().div_ceil(t));
-    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tx * ty) as usize];
-    for (i, sq) in projected.iter().enumerate() {
-        let [x0, y0, x1, y1] = sq.bbox;
-        for by in y0 / t..=y1 / t {
-            for bx in x0 / t..=x1 / t {
-                bins[(by * tx + bx) as usize].push(i as u32);
-            }
-        }
-    }
+    let (bins, tx) = crate::render::tile_bins(&projected, view, TILE as u32);
     Binned {
         projected,
         bins,

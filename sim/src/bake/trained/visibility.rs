@@ -21,8 +21,7 @@ use super::extract::Geometry;
 use super::featgrid::FeatureGrid;
 use super::gbuffer::{self, Subsamples, NO_TEXEL, SUBSAMPLES, TILE};
 use super::net::{self, FEATURES, LANES};
-use crate::render::{supersampled_view, view_of};
-use nerflex_core::raster::{AlphaBits, TileRenderer, SUPERSAMPLE};
+use nerflex_core::raster::TileRenderer;
 use nerflex_core::shader::{MlpWeights, INPUTS};
 
 /// One covered pixel of a training view, with two layers: per subsample
@@ -112,25 +111,12 @@ pub fn peel(
 ) -> Result<Peel, BakeError> {
     let (layout, quads, pages) = gbuffer::pages_of(geo, p)?;
     let quads: Vec<&[_]> = quads.iter().map(Vec::as_slice).collect();
-    let masks = pages
-        .iter()
-        .map(|(w, h, b)| {
-            AlphaBits::new(*w, *h, b)
-                .map_err(|e| BakeError::BadParam(format!("peel alpha bits: {e:?}")))
-        })
-        .collect::<Result<Vec<_>, _>>()?;
+    let masks = gbuffer::alpha_masks(&pages)?;
     let per: Vec<Result<Vec<PeelPixel>, BakeError>> = views
         .par_iter()
         .enumerate()
         .map(|(vi, v)| {
-            let bad = |e| BakeError::BadViews(format!("view {vi}: {e:?}"));
-            let out_view = view_of(&v.camera).map_err(bad)?;
-            let view = if supersample {
-                supersampled_view(&v.camera).map_err(bad)?
-            } else {
-                out_view
-            };
-            let ss = if supersample { SUPERSAMPLE } else { 1 };
+            let (out_view, view, ss) = gbuffer::views_of(vi, v, supersample)?;
             let binned = gbuffer::bin(&quads, &view);
             let t = TILE as u32;
             let mut front = Box::new(TileRenderer::<TILE, TILE>::new());
