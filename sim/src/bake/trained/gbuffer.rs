@@ -143,29 +143,21 @@ fn rasterize_bits(
                             continue;
                         }
                         let (x, y) = (x0 / ss + ox, y0 / ss + oy);
-                        // Pixels another object covers say nothing about this one.
-                        if let super::super::Silhouette::Instance { mask, label } = v.silhouette {
-                            let m = mask.get_pixel(x, y).0[0];
-                            if m != 0 && m != label {
-                                continue;
-                            }
-                        }
+                        let Some((cov, target)) = photo_at(v, x, y) else {
+                            continue;
+                        };
                         // Where the image shows (mostly) background a white
                         // target would only teach a surface texel to be white
                         // (geometry is fixed here): such pixels give no target,
                         // only votes against the geometry they show.
-                        let cov = v.coverage(x, y);
                         if cov < 128 {
                             background.extend_from_slice(&texels[..n]);
                             continue;
                         }
-                        let px = v.image.get_pixel(x, y).0;
-                        let a = f32::from(cov) / 255.0;
-                        let c = |k: usize| f32::from(px[k]) / 255.0 * a + (1.0 - a);
                         out.push(GPixel {
                             texel: texels[0],
                             dir: out_view.pixel_dir_f32(x, y),
-                            target: [c(0), c(1), c(2)],
+                            target,
                         });
                         if supersample {
                             subs.push(texels);
@@ -185,6 +177,24 @@ fn rasterize_bits(
         g.background.extend(bg);
     }
     Ok(g)
+}
+
+/// The photo's object coverage (0–255) at pixel `(x, y)` of `v` and its
+/// colour there composited over white in [0, 1]; `None` where another
+/// object covers the pixel (it says nothing about this one).
+#[inline]
+pub(super) fn photo_at(v: &BakeView<'_>, x: u32, y: u32) -> Option<(u8, [f32; 3])> {
+    if let super::super::Silhouette::Instance { mask, label } = v.silhouette {
+        let m = mask.get_pixel(x, y).0[0];
+        if m != 0 && m != label {
+            return None;
+        }
+    }
+    let cov = v.coverage(x, y);
+    let px = v.image.get_pixel(x, y).0;
+    let a = f32::from(cov) / 255.0;
+    let c = |k: usize| f32::from(px[k]) / 255.0 * a + (1.0 - a);
+    Some((cov, [c(0), c(1), c(2)]))
 }
 
 /// The alpha tests of `pages`.

@@ -158,21 +158,14 @@ pub fn peel(
                             continue;
                         }
                         let (x, y) = (x0 / ss + ox, y0 / ss + oy);
-                        if let super::super::Silhouette::Instance { mask, label } = v.silhouette {
-                            let m = mask.get_pixel(x, y).0[0];
-                            if m != 0 && m != label {
-                                continue;
-                            }
-                        }
-                        let cov = v.coverage(x, y);
-                        let a = f32::from(cov) / 255.0;
-                        let px = v.image.get_pixel(x, y).0;
-                        let c = |k: usize| f32::from(px[k]) / 255.0 * a + (1.0 - a);
+                        let Some((cov, target)) = gbuffer::photo_at(v, x, y) else {
+                            continue;
+                        };
                         out.push(PeelPixel {
                             front: px_front,
                             behind: px_back,
                             dir: out_view.pixel_dir_f32(x, y),
-                            target: [c(0), c(1), c(2)],
+                            target,
                             cov,
                         });
                     }
