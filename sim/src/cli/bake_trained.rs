@@ -265,7 +265,8 @@ pub fn bake(
     if args.probe {
         probe(args, field.as_ref(), views, grid, patch)?;
     }
-    let tb = trained::bake(field.as_ref(), views, &args.params(grid, patch))?;
+    let params = args.params(grid, patch);
+    let tb = trained::bake(field.as_ref(), views, &params)?;
     let s = &tb.stats;
     let t = &s.times;
     println!(
@@ -292,7 +293,8 @@ pub fn bake(
             s.depth.moved, s.depth.mean_shift, s.depth.crossings
         );
     }
-    if s.visibility.removed_texels > 0 || args.visibility_rounds.is_some_and(|r| r > 0) {
+    // The rounds that ran: the flag, or the geometry's default.
+    if params.visibility.rounds > 0 {
         let v = &s.visibility;
         println!(
             "trained: visibility: {} texels made transparent (estimated error change {:.1} of {:.1}); last round judged {} texels over {} pixels; {} subsamples lost both layers, {} had theirs behind on an unshown quad; peel {:.2} s, judge {:.2} s",
