@@ -721,10 +721,21 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
 
     /// Starts the tile whose top-left pixel is `(x0, y0)` (clipped to the image).
     pub fn begin(&mut self, view: &View, x0: u32, y0: u32) {
+        self.restart(
+            x0,
+            y0,
+            view.width.saturating_sub(x0),
+            view.height.saturating_sub(y0),
+        );
+    }
+
+    /// Starts over on the rectangle `(x0, y0, w, h)` of an earlier
+    /// [`TileRenderer::begin`].
+    fn restart(&mut self, x0: u32, y0: u32, w: u32, h: u32) {
         self.x0 = x0;
         self.y0 = y0;
-        self.w = view.width.saturating_sub(x0).min(W as u32);
-        self.h = view.height.saturating_sub(y0).min(H as u32);
+        self.w = w.min(W as u32);
+        self.h = h.min(H as u32);
         self.stats = TileStats::default();
         for row in self.g.iter_mut() {
             for p in row.iter_mut() {
@@ -774,128 +785,28 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
         if !self.touches(sq) {
             return;
         }
-        let tris: &[[usize; 3]] = if sq.single_triangle {
-            &[[0, 1, 2]]
-        } else {
-            &QUAD_TRIANGLES
-        };
-        for tri in tris {
-            if !tri.iter().all(|&i| sq.valid & (1 << i) != 0) {
-                self.stats.triangles_clipped = self.stats.triangles_clipped.saturating_add(1);
-                continue;
-            }
-            let [a, b, c] = tri.map(|i| sq.v.get(i).copied().unwrap_or_default());
-            self.triangle(a, b, c, sq, atlas, front);
-        }
-    }
-
-    fn triangle<A: AlphaTest + ?Sized>(
-        &mut self,
-        a: ScreenVertex,
-        b: ScreenVertex,
-        c: ScreenVertex,
-        sq: &ScreenQuad,
-        atlas: &A,
-        front: Option<&[[GPixel; W]; H]>,
-    ) {
-        let mut area = edge(&a, &b, c.x, c.y);
-        let (b, c) = if area < 0 {
-            area = -area;
-            (c, b)
-        } else {
-            (b, c)
-        };
-        if area == 0 {
-            return;
-        }
-        // Triangle box ∩ tile, in pixels whose centres can be inside.
-        let px0 = first_centre(a.x.min(b.x).min(c.x)).max(self.x0 as i64);
-        let py0 = first_centre(a.y.min(b.y).min(c.y)).max(self.y0 as i64);
-        let px1 = last_centre(a.x.max(b.x).max(c.x)).min((self.x0 + self.w) as i64 - 1);
-        let py1 = last_centre(a.y.max(b.y).max(c.y)).min((self.y0 + self.h) as i64 - 1);
-        if px0 > px1 || py0 > py1 {
-            return;
-        }
-        self.stats.triangles = self.stats.triangles.saturating_add(1);
-        let bias = |p: &ScreenVertex, q: &ScreenVertex| {
-            let (dx, dy) = (q.x - p.x, q.y - p.y);
-            if dy > 0 || (dy == 0 && dx < 0) {
-                0
-            } else {
-                -1
-            }
-        };
-        let (bias_bc, bias_ca, bias_ab) = (bias(&b, &c), bias(&c, &a), bias(&a, &b));
-        let step = 1i64 << SUBPIXEL_BITS;
-        let half = step >> 1;
-        let inv_area = 1.0 / area as f32;
-        let (aw, ah) = (atlas.width(), atlas.height());
-        let (fw, fh) = (aw as f32, ah as f32);
-        let (d_bc, d_ca, d_ab) = ((c.y - b.y) * step, (a.y - c.y) * step, (b.y - a.y) * step);
-        for py in py0..=py1 {
-            let sy = py * step + half;
-            let sx = px0 * step + half;
-            let (e_bc, e_ca, e_ab) = (
-                edge(&b, &c, sx, sy),
-                edge(&c, &a, sx, sy),
-                edge(&a, &b, sx, sy),
-            );
-            // The row's inside pixels, solved exactly from the integer edge
-            // functions: the same pixels the per-pixel test takes, without
-            // walking (and mispredicting on) the box's outside ones.
-            let Some((k0, k1)) = span(
-                px1 - px0,
-                [
-                    (e_bc + bias_bc, d_bc),
-                    (e_ca + bias_ca, d_ca),
-                    (e_ab + bias_ab, d_ab),
-                ],
-            ) else {
-                continue;
-            };
-            let ry = (py - self.y0 as i64) as usize;
-            let row = self.g.get_mut(ry);
-            let Some(row) = row else { return };
-            let front_row = front.and_then(|f| f.get(ry));
-            for k in k0..=k1 {
-                let px = px0 + k;
-                let (la, lb, lc) = (
-                    (e_bc - k * d_bc) as f32 * inv_area,
-                    (e_ca - k * d_ca) as f32 * inv_area,
-                    (e_ab - k * d_ab) as f32 * inv_area,
-                );
-                let iw = la * a.inv_w + lb * b.inv_w + lc * c.inv_w;
-                let rx = (px - self.x0 as i64) as usize;
-                if let Some(fr) = front_row {
+        let rect = self.rect();
+        let (g, stats) = (&mut self.g, &mut self.stats);
+        for_each_triangle(sq, stats, |tri, stats| {
+            tri.scan(rect, stats, |ry, rx, iw, l, stats| {
+                let Some(row) = g.get_mut(ry) else { return };
+                if let Some(fr) = front.and_then(|f| f.get(ry)) {
                     // Peeling: strictly behind the front sample (a relative
                     // margin, so the front quad's own depth never passes).
-                    let Some(f) = fr.get(rx) else { continue };
-                    if f.inv_w <= 0.0 || f.quad == sq.id || iw >= f.inv_w * PEEL_MARGIN {
-                        continue;
+                    let Some(f) = fr.get(rx) else { return };
+                    if !peels(f, sq.id, iw) {
+                        return;
                     }
                 }
                 if let Some(g) = row.get_mut(rx) {
                     if iw > g.inv_w {
-                        let s = (la * a.s_w + lb * b.s_w + lc * c.s_w) / iw;
-                        let t = (la * a.t_w + lb * b.t_w + lc * c.t_w) / iw;
-                        let tx = texel_index(s * fw, aw);
-                        let ty = texel_index(t * fh, ah);
-                        if atlas.empty(tx, ty) {
-                            self.stats.discarded = self.stats.discarded.saturating_add(1);
-                        } else {
-                            self.stats.fragments = self.stats.fragments.saturating_add(1);
-                            *g = GPixel {
-                                inv_w: iw,
-                                part: sq.part,
-                                tx: tx as u16,
-                                ty: ty as u16,
-                                quad: sq.id,
-                            };
+                        if let Some(px) = tri.fragment(sq, atlas, iw, l, stats) {
+                            *g = px;
                         }
                     }
                 }
-            }
-        }
+            });
+        });
     }
 
     /// Covered pixels of the tile.
@@ -952,6 +863,167 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
                     }
                 }
             }
+        }
+    }
+}
+
+/// Whether a fragment of quad `quad` at `iw` passes the peel behind the
+/// front sample `f`: `f` covered, another quad, and more than
+/// [`PEEL_MARGIN`] behind it.
+#[inline(always)]
+fn peels(f: &GPixel, quad: u32, iw: f32) -> bool {
+    !(f.inv_w <= 0.0 || f.quad == quad || iw >= f.inv_w * PEEL_MARGIN)
+}
+
+/// Calls `f` with each drawable triangle of `sq` set up (clipped ones are
+/// counted and skipped).
+#[inline(always)]
+fn for_each_triangle(
+    sq: &ScreenQuad,
+    stats: &mut TileStats,
+    mut f: impl FnMut(&Triangle, &mut TileStats),
+) {
+    let tris: &[[usize; 3]] = if sq.single_triangle {
+        &[[0, 1, 2]]
+    } else {
+        &QUAD_TRIANGLES
+    };
+    for tri in tris {
+        if !tri.iter().all(|&i| sq.valid & (1 << i) != 0) {
+            stats.triangles_clipped = stats.triangles_clipped.saturating_add(1);
+            continue;
+        }
+        let [a, b, c] = tri.map(|i| sq.v.get(i).copied().unwrap_or_default());
+        if let Some(t) = Triangle::new(a, b, c) {
+            f(&t, stats);
+        }
+    }
+}
+
+/// A triangle set up for scanning: counter-clockwise corners and the
+/// inverse of its doubled area (`None` when degenerate).
+struct Triangle {
+    a: ScreenVertex,
+    b: ScreenVertex,
+    c: ScreenVertex,
+    area: i64,
+    inv_area: f32,
+}
+
+impl Triangle {
+    #[inline(always)]
+    fn new(a: ScreenVertex, b: ScreenVertex, c: ScreenVertex) -> Option<Self> {
+        let mut area = edge(&a, &b, c.x, c.y);
+        let (b, c) = if area < 0 {
+            area = -area;
+            (c, b)
+        } else {
+            (b, c)
+        };
+        (area != 0).then(|| Self {
+            a,
+            b,
+            c,
+            area,
+            inv_area: 1.0 / area as f32,
+        })
+    }
+
+    /// Calls `frag(row, column, 1/w, barycentrics, stats)` for every pixel
+    /// of the tile `rect` whose centre the triangle covers (tile-local
+    /// row and column), row by row.
+    #[inline(always)]
+    fn scan(
+        &self,
+        rect: (u32, u32, u32, u32),
+        stats: &mut TileStats,
+        mut frag: impl FnMut(usize, usize, f32, [f32; 3], &mut TileStats),
+    ) {
+        let (a, b, c) = (&self.a, &self.b, &self.c);
+        let (x0, y0, w, h) = rect;
+        debug_assert!(self.area > 0);
+        // Triangle box ∩ tile, in pixels whose centres can be inside.
+        let px0 = first_centre(a.x.min(b.x).min(c.x)).max(x0 as i64);
+        let py0 = first_centre(a.y.min(b.y).min(c.y)).max(y0 as i64);
+        let px1 = last_centre(a.x.max(b.x).max(c.x)).min((x0 + w) as i64 - 1);
+        let py1 = last_centre(a.y.max(b.y).max(c.y)).min((y0 + h) as i64 - 1);
+        if px0 > px1 || py0 > py1 {
+            return;
+        }
+        stats.triangles = stats.triangles.saturating_add(1);
+        let bias = |p: &ScreenVertex, q: &ScreenVertex| {
+            let (dx, dy) = (q.x - p.x, q.y - p.y);
+            if dy > 0 || (dy == 0 && dx < 0) {
+                0
+            } else {
+                -1
+            }
+        };
+        let (bias_bc, bias_ca, bias_ab) = (bias(b, c), bias(c, a), bias(a, b));
+        let step = 1i64 << SUBPIXEL_BITS;
+        let half = step >> 1;
+        let inv_area = self.inv_area;
+        let (d_bc, d_ca, d_ab) = ((c.y - b.y) * step, (a.y - c.y) * step, (b.y - a.y) * step);
+        for py in py0..=py1 {
+            let sy = py * step + half;
+            let sx = px0 * step + half;
+            let (e_bc, e_ca, e_ab) = (edge(b, c, sx, sy), edge(c, a, sx, sy), edge(a, b, sx, sy));
+            // The row's inside pixels, solved exactly from the integer edge
+            // functions: the same pixels the per-pixel test takes, without
+            // walking (and mispredicting on) the box's outside ones.
+            let Some((k0, k1)) = span(
+                px1 - px0,
+                [
+                    (e_bc + bias_bc, d_bc),
+                    (e_ca + bias_ca, d_ca),
+                    (e_ab + bias_ab, d_ab),
+                ],
+            ) else {
+                continue;
+            };
+            let ry = (py - y0 as i64) as usize;
+            for k in k0..=k1 {
+                let l = [
+                    (e_bc - k * d_bc) as f32 * inv_area,
+                    (e_ca - k * d_ca) as f32 * inv_area,
+                    (e_ab - k * d_ab) as f32 * inv_area,
+                ];
+                let iw = l[0] * a.inv_w + l[1] * b.inv_w + l[2] * c.inv_w;
+                let rx = (px0 + k - x0 as i64) as usize;
+                frag(ry, rx, iw, l, stats);
+            }
+        }
+    }
+
+    /// The G-buffer entry of a fragment at `1/w = iw` and barycentrics `l`
+    /// after the alpha test (`None`: its texel is empty); counted in `stats`.
+    #[inline(always)]
+    fn fragment<A: AlphaTest + ?Sized>(
+        &self,
+        sq: &ScreenQuad,
+        atlas: &A,
+        iw: f32,
+        l: [f32; 3],
+        stats: &mut TileStats,
+    ) -> Option<GPixel> {
+        let (a, b, c) = (&self.a, &self.b, &self.c);
+        let (aw, ah) = (atlas.width(), atlas.height());
+        let s = (l[0] * a.s_w + l[1] * b.s_w + l[2] * c.s_w) / iw;
+        let t = (l[0] * a.t_w + l[1] * b.t_w + l[2] * c.t_w) / iw;
+        let tx = texel_index(s * aw as f32, aw);
+        let ty = texel_index(t * ah as f32, ah);
+        if atlas.empty(tx, ty) {
+            stats.discarded = stats.discarded.saturating_add(1);
+            None
+        } else {
+            stats.fragments = stats.fragments.saturating_add(1);
+            Some(GPixel {
+                inv_w: iw,
+                part: sq.part,
+                tx: tx as u16,
+                ty: ty as u16,
+                quad: sq.id,
+            })
         }
     }
 }
@@ -1149,6 +1221,9 @@ pub fn coverage<const W: usize, const H: usize>(
         tiles,
     })
 }
+
+mod peel;
+pub use peel::TwoLayers;
 
 #[cfg(test)]
 mod tests;

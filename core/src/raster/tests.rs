@@ -512,3 +512,103 @@ fn peeling_shows_what_lies_behind_the_front_sample() {
     }
     assert!(fourth.sample(x, y).is_none());
 }
+
+/// A quad for the two-layer property: in a plane near `y` (tilted by
+/// `tilt` along x), over x ∈ [x0, x1], z ∈ [z0, z1].
+fn tilted_quad(y: f32, tilt: f32, x0: f32, x1: f32, z0: f32, z1: f32, n: u32) -> Quad {
+    let (t0, t1) = (0.5, n as f32 - 0.5);
+    let at = |x: f32| y + tilt * x;
+    Quad::new([
+        Vertex::at_texel([x0, at(x0), z1], t0, t0, n, n),
+        Vertex::at_texel([x0, at(x0), z0], t0, t1, n, n),
+        Vertex::at_texel([x1, at(x1), z1], t1, t0, n, n),
+        Vertex::at_texel([x1, at(x1), z0], t1, t1, n, n),
+    ])
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(1024))]
+
+    /// One draw of both layers gives what a front pass and a peeling pass
+    /// give, pixel for pixel, whatever the order, near-coplanar stacks,
+    /// crossing planes, empty texels and repeated quad ids.
+    #[test]
+    fn two_layers_in_one_draw_equal_the_two_passes(
+        quads in proptest::collection::vec(
+            (0usize..4, 0usize..4, -4i32..=4, 0u8..6, 0u8..6, 0u8..6, 0u8..6, 0u32..6),
+            1..14,
+        ),
+        holes in 0u32..4,
+    ) {
+        let v = view(Vec3::new(0.0, -4.0, 0.3), 24, 40.0);
+        let n = 8;
+        let (f0, f1) = atlas_pages(n, |x, y| holes > 0 && (x * 7 + y * 3) % 5 < holes);
+        let a = Atlas::new(n, n, &f0, &f1).unwrap();
+        // Planes a hair, a margin's width, or far apart; some crossing.
+        let ys = [0.0f32, 1e-6, 3e-5, 0.25];
+        let tilts = [0.0f32, 0.0, 0.3, -0.4];
+        let ext = |e: u8| -1.2 + 0.45 * f32::from(e);
+        let sq: Vec<ScreenQuad> = quads
+            .iter()
+            .enumerate()
+            .filter_map(|(i, &(yi, ti, dz, xa, xb, za, zb, id))| {
+                let (x0, x1) = (ext(xa.min(xb)), ext(xa.max(xb)) + 0.3);
+                let (z0, z1) = (ext(za.min(zb)), ext(za.max(zb)) + 0.3);
+                let y = ys[yi] + dz as f32 * 0.125;
+                let q = tilted_quad(y, tilts[ti], x0, x1, z0, z1, n);
+                // Repeated ids: the peel skips the front's quad by id.
+                ScreenQuad::project(&v, &q, (i % 2) as u16, id)
+            })
+            .collect();
+        let mut front = TileRenderer::<16, 16>::new();
+        let mut behind = TileRenderer::<16, 16>::new();
+        let mut two = TwoLayers::<16, 16>::new();
+        for (tx, ty) in [(0, 0), (16, 0), (0, 16), (16, 16)] {
+            front.begin(&v, tx, ty);
+            behind.begin(&v, tx, ty);
+            two.begin(&v, tx, ty);
+            for q in &sq {
+                front.draw(q, &a);
+                two.draw(q, &a);
+            }
+            for q in &sq {
+                behind.draw_behind(q, &a, &front);
+            }
+            proptest::prop_assert_eq!(two.front().stats(), front.stats());
+            let decided = !two.undecided();
+            let mut same_back = true;
+            for y in 0..16 {
+                for x in 0..16 {
+                    proptest::prop_assert_eq!(two.front().sample(x, y), front.sample(x, y));
+                    same_back &= two.back().sample(x, y) == behind.sample(x, y);
+                }
+            }
+            // Decided in one pass: already exact.
+            proptest::prop_assert!(!decided || same_back, "decided but different");
+            two.resolve(sq.iter().map(|q| (q, &a)));
+            for y in 0..16 {
+                for x in 0..16 {
+                    proptest::prop_assert_eq!(two.back().sample(x, y), behind.sample(x, y));
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn two_layers_decide_a_plain_stack_in_one_pass() {
+    // The scrambled three-quad stack of the peeling test, in one draw.
+    let v = view(Vec3::new(0.0, -4.0, 0.0), 32, 40.0);
+    let (f0, f1) = atlas_pages(8, |_, _| false);
+    let a = Atlas::new(8, 8, &f0, &f1).unwrap();
+    let mut two = TwoLayers::<32, 32>::new();
+    two.begin(&v, 0, 0);
+    for (i, y) in [0.0f32, -0.5, 0.5].into_iter().enumerate() {
+        let q = quad(y, -1.0, 1.0, -1.0, 1.0, 8);
+        two.draw(&ScreenQuad::project(&v, &q, 0, i as u32).unwrap(), &a);
+    }
+    assert!(!two.undecided());
+    assert_eq!(two.front().sample(16, 16).unwrap().quad, 1);
+    assert_eq!(two.back().sample(16, 16).unwrap().quad, 0);
+    assert!(two.front().sample(0, 0).is_none() && two.back().sample(0, 0).is_none());
+}

@@ -657,6 +657,7 @@ pub fn bake(
         );
         // The next G-buffers from the two layers: no third pass.
         let (next, lost) = peeled.gbuffers(&geo.opacity, params.supersample);
+        let tiles = peeled.tiles;
         drop(peeled);
         gb = next;
         visibility = visibility::VisibilityReport {
@@ -667,6 +668,10 @@ pub fn bake(
             error_change: visibility.error_change + r.error_change,
             lost_subsamples: visibility.lost_subsamples + lost,
             unkept_behind: visibility.unkept_behind + unkept,
+            peel_tiles: (
+                visibility.peel_tiles.0 + tiles.0,
+                visibility.peel_tiles.1 + tiles.1,
+            ),
             peel_s: visibility.peel_s + (v1 - v0).as_secs_f64(),
             judge_s: visibility.judge_s + v1.elapsed().as_secs_f64(),
         };

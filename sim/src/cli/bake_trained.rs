@@ -297,8 +297,8 @@ pub fn bake(
     if params.visibility.rounds > 0 {
         let v = &s.visibility;
         println!(
-            "trained: visibility: {} texels made transparent (estimated error change {:.1} of {:.1}); last round judged {} texels over {} pixels; {} subsamples lost both layers, {} had theirs behind on an unshown quad; peel {:.2} s, judge {:.2} s",
-            v.removed_texels, v.error_change, v.error_before, v.shown_texels, v.pixels, v.lost_subsamples, v.unkept_behind, v.peel_s, v.judge_s
+            "trained: visibility: {} texels made transparent (estimated error change {:.1} of {:.1}); last round judged {} texels over {} pixels; {} subsamples lost both layers, {} had theirs behind on an unshown quad; {} of {} tiles' layer behind redrawn by peeling; peel {:.2} s, judge {:.2} s",
+            v.removed_texels, v.error_change, v.error_before, v.shown_texels, v.pixels, v.lost_subsamples, v.unkept_behind, v.peel_tiles.1, v.peel_tiles.0, v.peel_s, v.judge_s
         );
     }
     println!(

@@ -21,7 +21,7 @@ use super::extract::Geometry;
 use super::featgrid::FeatureGrid;
 use super::gbuffer::{self, Subsamples, NO_TEXEL, SUBSAMPLES, TILE};
 use super::net::{self, FEATURES, LANES};
-use nerflex_core::raster::TileRenderer;
+use nerflex_core::raster::TwoLayers;
 use nerflex_core::shader::{MlpWeights, INPUTS};
 
 /// One covered pixel of a training view, with two layers: per subsample
@@ -49,6 +49,9 @@ pub struct Peel {
     pub pixels: Vec<PeelPixel>,
     /// Covered pixels per view.
     pub per_view: Vec<usize>,
+    /// Tiles drawn, and those whose layer behind one draw could not
+    /// decide and a peeling pass redrew ([`TwoLayers::resolve`]).
+    pub tiles: (u64, u64),
 }
 
 /// The most visibility rounds a bake takes.
@@ -94,6 +97,8 @@ pub struct VisibilityReport {
     /// dropped before the judgement (the first round's layers are
     /// rasterized before that drop): judged as if nothing were behind.
     pub unkept_behind: u64,
+    /// Tiles of the two-layer rasterizations, and those redrawn.
+    pub peel_tiles: (u64, u64),
     /// Wall time of the two-layer rasterizations, seconds.
     pub peel_s: f64,
     /// … of the judgements and the next G-buffers.
@@ -112,35 +117,36 @@ pub fn peel(
     let (layout, quads, pages) = gbuffer::pages_of(geo, p)?;
     let quads: Vec<&[_]> = quads.iter().map(Vec::as_slice).collect();
     let masks = gbuffer::alpha_masks(&pages)?;
-    let per: Vec<Result<Vec<PeelPixel>, BakeError>> = views
+    type ViewLayers = (Vec<PeelPixel>, (u64, u64));
+    let per: Vec<Result<ViewLayers, BakeError>> = views
         .par_iter()
         .enumerate()
         .map(|(vi, v)| {
             let (out_view, view, ss) = gbuffer::views_of(vi, v, supersample)?;
             let binned = gbuffer::bin(&quads, &view);
             let t = TILE as u32;
-            let mut front = Box::new(TileRenderer::<TILE, TILE>::new());
-            let mut back = Box::new(TileRenderer::<TILE, TILE>::new());
+            let mut two = Box::new(TwoLayers::<TILE, TILE>::new());
             let mut out = Vec::new();
+            let mut tiles = (0u64, 0u64);
             for (b, bin) in binned.bins.iter().enumerate() {
                 if bin.is_empty() {
                     continue;
                 }
                 let (bx, by) = (b as u32 % binned.tx, b as u32 / binned.tx);
-                front.begin(&view, bx * t, by * t);
-                back.begin(&view, bx * t, by * t);
-                for &i in bin {
-                    let sq = &binned.projected[i as usize];
-                    if let Some(mask) = masks.get(sq.part as usize) {
-                        front.draw(sq, mask);
-                    }
+                tiles.0 += 1;
+                two.begin(&view, bx * t, by * t);
+                let drawn = || {
+                    bin.iter().filter_map(|&i| {
+                        let sq = &binned.projected[i as usize];
+                        masks.get(sq.part as usize).map(|m| (sq, m))
+                    })
+                };
+                for (sq, mask) in drawn() {
+                    two.draw(sq, mask);
                 }
-                for &i in bin {
-                    let sq = &binned.projected[i as usize];
-                    if let Some(mask) = masks.get(sq.part as usize) {
-                        back.draw_behind(sq, mask, &front);
-                    }
-                }
+                // Rare: a pixel kept too little to decide what lies behind.
+                tiles.1 += u64::from(two.resolve(drawn()));
+                let (front, back) = (two.front(), two.back());
                 let (x0, y0, w, h) = front.rect();
                 for oy in 0..h / ss {
                     for ox in 0..w / ss {
@@ -148,10 +154,10 @@ pub fn peel(
                         let mut px_back = [NO_TEXEL; SUBSAMPLES];
                         for i in 0..(ss * ss) as usize {
                             let (sx, sy) = (ox * ss + i as u32 % ss, oy * ss + i as u32 / ss);
-                            if let Some(t) = gbuffer::texel_at(&front, &layout, sx, sy) {
+                            if let Some(t) = gbuffer::texel_at(front, &layout, sx, sy) {
                                 px_front[i] = t;
                                 px_back[i] =
-                                    gbuffer::texel_at(&back, &layout, sx, sy).unwrap_or(NO_TEXEL);
+                                    gbuffer::texel_at(back, &layout, sx, sy).unwrap_or(NO_TEXEL);
                             }
                         }
                         if px_front.iter().all(|&t| t == NO_TEXEL) {
@@ -171,14 +177,15 @@ pub fn peel(
                     }
                 }
             }
-            Ok(out)
+            Ok((out, tiles))
         })
         .collect();
     let mut all = Peel::default();
     for r in per {
-        let r = r?;
+        let (r, tiles) = r?;
         all.per_view.push(r.len());
         all.pixels.extend(r);
+        all.tiles = (all.tiles.0 + tiles.0, all.tiles.1 + tiles.1);
     }
     Ok(all)
 }

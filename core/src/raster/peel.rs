@@ -1,0 +1,217 @@
+//! Two layers in one draw: the front sample of every pixel and the one a
+//! second, peeling pass ([`TileRenderer::draw_behind`]) would find behind
+//! it, without that second pass.
+//!
+//! The peel keeps the nearest fragment that is more than [`PEEL_MARGIN`]
+//! behind the *final* front sample and not of its quad. While drawing, the
+//! front can still move nearer, and then fragments that were too close to
+//! the old front may pass behind the new one. Fragments behind the margin
+//! never need keeping beyond the best of them: a nearer front only widens
+//! what passes. So each pixel keeps the front, the best fragment that
+//! passes so far, and one fragment within the margin (or of the front's
+//! quad). A pixel that would need two of those marks the tile undecided,
+//! and [`TwoLayers::resolve`] then draws the back layer again by peeling,
+//! so the result is always the two-pass one, bit for bit (ties go to the
+//! earlier-drawn fragment, as the depth test's strict `>` does).
+
+use super::{
+    for_each_triangle, peels, AlphaTest, GPixel, ScreenQuad, TileRenderer, TileStats, View,
+};
+
+/// Where in the draw order a kept fragment came (ties go to the earlier).
+type Order = u32;
+
+/// Fragments kept per pixel within the margin of the front (coplanar
+/// overlaps of grown quads put two or three there).
+const NEAR: usize = 3;
+
+const EMPTY: GPixel = GPixel {
+    inv_w: 0.0,
+    part: 0,
+    tx: 0,
+    ty: 0,
+    quad: 0,
+};
+
+/// A tile's front layer and the layer behind it, drawn in one pass.
+#[derive(Debug, Clone)]
+pub struct TwoLayers<const W: usize, const H: usize> {
+    front: TileRenderer<W, H>,
+    back: TileRenderer<W, H>,
+    /// A fragment that does not pass the peel behind the current front
+    /// (within the margin, or of its quad) but may behind a nearer one.
+    near: [[[GPixel; NEAR]; W]; H],
+    /// Draw order of the front, back and near fragments.
+    order: [[[Order; 2 + NEAR]; W]; H],
+    drawn: Order,
+    undecided: bool,
+}
+
+impl<const W: usize, const H: usize> Default for TwoLayers<W, H> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const W: usize, const H: usize> TwoLayers<W, H> {
+    /// Empty layers.
+    pub const fn new() -> Self {
+        Self {
+            front: TileRenderer::new(),
+            back: TileRenderer::new(),
+            near: [[[EMPTY; NEAR]; W]; H],
+            order: [[[0; 2 + NEAR]; W]; H],
+            drawn: 0,
+            undecided: false,
+        }
+    }
+
+    /// Starts the tile whose top-left pixel is `(x0, y0)` (clipped to the image).
+    pub fn begin(&mut self, view: &View, x0: u32, y0: u32) {
+        self.front.begin(view, x0, y0);
+        self.back.begin(view, x0, y0);
+        for row in self.near.iter_mut() {
+            for p in row.iter_mut().flatten() {
+                p.inv_w = 0.0;
+            }
+        }
+        self.drawn = 0;
+        self.undecided = false;
+    }
+
+    /// The front layer: what [`TileRenderer::draw`] of the same quads gives
+    /// (its counters too).
+    pub fn front(&self) -> &TileRenderer<W, H> {
+        &self.front
+    }
+
+    /// The layer behind it: what [`TileRenderer::draw_behind`] gives, once
+    /// [`TwoLayers::resolve`] has run.
+    pub fn back(&self) -> &TileRenderer<W, H> {
+        &self.back
+    }
+
+    /// Whether some pixel kept too little to decide its back layer in one
+    /// pass (then [`TwoLayers::resolve`] redraws it).
+    pub fn undecided(&self) -> bool {
+        self.undecided
+    }
+
+    /// Rasterizes a projected quad into both layers (depth + alpha test).
+    pub fn draw<A: AlphaTest + ?Sized>(&mut self, sq: &ScreenQuad, atlas: &A) {
+        if !self.front.touches(sq) {
+            return;
+        }
+        let seq = self.drawn;
+        if seq == Order::MAX {
+            self.undecided = true;
+        }
+        self.drawn = seq.saturating_add(1);
+        let rect = self.front.rect();
+        let Self {
+            front,
+            back,
+            near,
+            order,
+            undecided,
+            ..
+        } = self;
+        let (fg, bg) = (&mut front.g, &mut back.g);
+        // The back layer's alpha tests are not the front's work.
+        let mut other = TileStats::default();
+        for_each_triangle(sq, &mut front.stats, |tri, stats| {
+            tri.scan(rect, stats, |ry, rx, iw, l, stats| {
+                let (Some(f), Some(b), Some(n), Some(o)) = (
+                    fg.get_mut(ry).and_then(|r| r.get_mut(rx)),
+                    bg.get_mut(ry).and_then(|r| r.get_mut(rx)),
+                    near.get_mut(ry).and_then(|r| r.get_mut(rx)),
+                    order.get_mut(ry).and_then(|r| r.get_mut(rx)),
+                ) else {
+                    return;
+                };
+                if iw > f.inv_w {
+                    let Some(px) = tri.fragment(sq, atlas, iw, l, stats) else {
+                        return;
+                    };
+                    // A new front: the old one and the near fragment are
+                    // judged against it; the back one still passes unless
+                    // it shares the new front's quad id.
+                    if b.inv_w > 0.0 && b.quad == sq.id {
+                        *undecided = true;
+                    }
+                    let (old_front, old_near, old_order) = (*f, *n, *o);
+                    let mut kept = [EMPTY; NEAR];
+                    let mut kept_order = [0; NEAR];
+                    let mut k = 0;
+                    let candidates = core::iter::once((old_front, old_order[0]))
+                        .chain(old_near.into_iter().zip(old_order[2..].iter().copied()));
+                    for (y, oy) in candidates {
+                        if y.inv_w <= 0.0 {
+                            continue;
+                        }
+                        if peels(&px, y.quad, y.inv_w) {
+                            if y.inv_w > b.inv_w || (y.inv_w == b.inv_w && oy < o[1]) {
+                                *b = y;
+                                o[1] = oy;
+                            }
+                        } else if let (Some(slot), Some(so)) =
+                            (kept.get_mut(k), kept_order.get_mut(k))
+                        {
+                            *slot = y;
+                            *so = oy;
+                            k += 1;
+                        } else {
+                            *undecided = true;
+                        }
+                    }
+                    *n = kept;
+                    for (so, ko) in o[2..].iter_mut().zip(kept_order) {
+                        *so = ko;
+                    }
+                    *f = px;
+                    o[0] = seq;
+                } else if iw.is_nan() || iw <= 0.0 {
+                    // Never kept by either pass (also NaN).
+                } else if peels(f, sq.id, iw) {
+                    if iw > b.inv_w {
+                        if let Some(px) = tri.fragment(sq, atlas, iw, l, &mut other) {
+                            *b = px;
+                            o[1] = seq;
+                        }
+                    }
+                } else if let Some(px) = tri.fragment(sq, atlas, iw, l, &mut other) {
+                    match n
+                        .iter_mut()
+                        .zip(o[2..].iter_mut())
+                        .find(|(y, _)| y.inv_w <= 0.0)
+                    {
+                        Some((slot, so)) => {
+                            *slot = px;
+                            *so = seq;
+                        }
+                        None => *undecided = true,
+                    }
+                }
+            });
+        });
+    }
+
+    /// Makes the back layer exact where one pass could not decide it: if
+    /// the tile is undecided, draws `quads` (the tile's, in the same order)
+    /// again behind the front. Returns whether it did.
+    pub fn resolve<'q, A: AlphaTest + ?Sized + 'q>(
+        &mut self,
+        quads: impl IntoIterator<Item = (&'q ScreenQuad, &'q A)>,
+    ) -> bool {
+        if !self.undecided {
+            return false;
+        }
+        let (x0, y0, w, h) = self.front.rect();
+        self.back.restart(x0, y0, w, h);
+        for (sq, atlas) in quads {
+            self.back.draw_behind(sq, atlas, &self.front);
+        }
+        self.undecided = false;
+        true
+    }
+}
