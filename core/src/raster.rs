@@ -28,6 +28,10 @@
 //!
 //! Setup and interpolation use `f32` (the Cortex-M4F has an FPU); the
 //! shading pass — view direction and MLP — uses integers only.
+//!
+//! For the baker, [`TileRenderer::draw_behind`] peels the layer behind
+//! the front samples, and [`TwoLayers`] draws both layers in one pass
+//! with the same result.
 
 use crate::shader::{FixedMlp, ViewDir};
 /// Re-exported: the `DrawTarget` API this module renders into.
