@@ -133,9 +133,10 @@ impl<const W: usize, const H: usize> TwoLayers<W, H> {
                     let Some(px) = tri.fragment(sq, atlas, iw, l, stats) else {
                         return;
                     };
-                    // A new front: the old one and the near fragment are
-                    // judged against it; the back one still passes unless
-                    // it shares the new front's quad id.
+                    // A new front: the old one and the near fragments are
+                    // judged against it; the back one still passes (a
+                    // nearer front only widens the peel) unless it shares
+                    // the new front's quad id.
                     if b.inv_w > 0.0 && b.quad == sq.id {
                         *undecided = true;
                     }

@@ -1,0 +1,152 @@
+//! The baker's two-layer rasterization (`raster::TwoLayers`, one draw)
+//! against the two passes it replaces (`TileRenderer::draw` then
+//! `draw_behind`), on a synthetic planes scene like the trained baker's: a
+//! sphere's surface voxels on a 96³ grid, each with the plane facing its
+//! normal's main axis and, where the normal leans, the second one (grown
+//! by an eighth of a voxel into their neighbours, so coplanar overlaps and
+//! crossing planes are common), seen at 1600 × 1600 (the bake's 2 × 2
+//! supersampled 800 × 800 view). One core, every tile.
+//!
+//! `cargo bench -p nerflex-hostbench --bench peel`
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use nerflex_core::raster::glam::{Mat4, Vec3};
+use nerflex_core::raster::{Atlas, Quad, ScreenQuad, TileRenderer, TwoLayers, Vertex, View};
+use std::hint::black_box;
+
+const TILE: usize = 32;
+const SIDE: u32 = 1600;
+const GRID: i32 = 96;
+const TEXELS: u32 = 8;
+
+/// The plane through voxel centre `c` facing axis `axis`, half-size `h`.
+fn plane(c: Vec3, axis: usize, h: f32) -> Quad {
+    let (u, v) = match axis {
+        0 => (Vec3::Y, Vec3::Z),
+        1 => (Vec3::Z, Vec3::X),
+        _ => (Vec3::X, Vec3::Y),
+    };
+    let (t0, t1) = (0.5, TEXELS as f32 - 0.5);
+    let at = |su: f32, sv: f32| (c + h * (su * u + sv * v)).to_array();
+    Quad::new([
+        Vertex::at_texel(at(-1.0, 1.0), t0, t0, TEXELS, TEXELS),
+        Vertex::at_texel(at(-1.0, -1.0), t0, t1, TEXELS, TEXELS),
+        Vertex::at_texel(at(1.0, 1.0), t1, t0, TEXELS, TEXELS),
+        Vertex::at_texel(at(1.0, -1.0), t1, t1, TEXELS, TEXELS),
+    ])
+}
+
+fn scene() -> Vec<Quad> {
+    let voxel = 2.4 / GRID as f32;
+    let h = 0.5 * voxel * 1.25;
+    let mut quads = Vec::new();
+    for i in 0..GRID {
+        for j in 0..GRID {
+            for k in 0..GRID {
+                let c = (Vec3::new(i as f32, j as f32, k as f32) + 0.5) * voxel - 1.2;
+                if (c.length() - 1.0).abs() > 0.5 * voxel {
+                    continue;
+                }
+                let n = c.normalize().abs().to_array();
+                let mut axes = [0usize, 1, 2];
+                axes.sort_by(|&a, &b| n[b].total_cmp(&n[a]));
+                quads.push(plane(c, axes[0], h));
+                if n[axes[1]] > 0.5 * n[axes[0]] {
+                    quads.push(plane(c, axes[1], h));
+                }
+            }
+        }
+    }
+    quads
+}
+
+fn view() -> View {
+    let eye = Vec3::new(2.2, -2.6, 1.6);
+    let back = eye.normalize();
+    let right = Vec3::Z.cross(back).normalize();
+    let up = back.cross(right);
+    let c2w = Mat4::from_cols(
+        right.extend(0.0),
+        up.extend(0.0),
+        back.extend(0.0),
+        eye.extend(1.0),
+    );
+    let f = 0.5 * SIDE as f32 / (0.5 * 40f32.to_radians()).tan();
+    let c = 0.5 * SIDE as f32;
+    View::new(c2w, f, f, c, c, SIDE, SIDE).expect("a valid view")
+}
+
+fn bench(c: &mut Criterion) {
+    let v = view();
+    let quads = scene();
+    let projected: Vec<ScreenQuad> = quads
+        .iter()
+        .enumerate()
+        .filter_map(|(i, q)| ScreenQuad::project(&v, q, 0, i as u32))
+        .collect();
+    let f0 = vec![255u8; (TEXELS * TEXELS * 4) as usize];
+    let f1 = f0.clone();
+    let atlas = Atlas::new(TEXELS, TEXELS, &f0, &f1).expect("an atlas");
+    let t = TILE as u32;
+    let tiles: Vec<(u32, u32, Vec<&ScreenQuad>)> = (0..SIDE / t)
+        .flat_map(|ty| (0..SIDE / t).map(move |tx| (tx * t, ty * t)))
+        .map(|(x0, y0)| {
+            let bin = projected
+                .iter()
+                .filter(|q| q.overlaps(x0, y0, x0 + t - 1, y0 + t - 1))
+                .collect();
+            (x0, y0, bin)
+        })
+        .filter(|(_, _, bin): &(u32, u32, Vec<&ScreenQuad>)| !bin.is_empty())
+        .collect();
+    let mut front = Box::new(TileRenderer::<TILE, TILE>::new());
+    let mut behind = Box::new(TileRenderer::<TILE, TILE>::new());
+    let mut two = Box::new(TwoLayers::<TILE, TILE>::new());
+    let mut redrawn = 0;
+    for (x0, y0, bin) in &tiles {
+        two.begin(&v, *x0, *y0);
+        for q in bin {
+            two.draw(q, &atlas);
+        }
+        redrawn += usize::from(two.resolve(bin.iter().map(|q| (*q, &atlas))));
+    }
+    println!(
+        "peel scene: {} quads, {} tiles drawn, {} redrawn by peeling",
+        quads.len(),
+        tiles.len(),
+        redrawn
+    );
+    let mut g = c.benchmark_group("peel_sphere_1600");
+    g.sample_size(20);
+    g.bench_function("two_passes", |b| {
+        b.iter(|| {
+            for (x0, y0, bin) in &tiles {
+                front.begin(&v, *x0, *y0);
+                behind.begin(&v, *x0, *y0);
+                for q in bin {
+                    front.draw(q, &atlas);
+                }
+                for q in bin {
+                    behind.draw_behind(q, &atlas, &front);
+                }
+                black_box(behind.covered());
+            }
+        })
+    });
+    g.bench_function("one_draw", |b| {
+        b.iter(|| {
+            for (x0, y0, bin) in &tiles {
+                two.begin(&v, *x0, *y0);
+                for q in bin {
+                    two.draw(q, &atlas);
+                }
+                two.resolve(bin.iter().map(|q| (*q, &atlas)));
+                black_box(two.back().covered());
+            }
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
