@@ -1,11 +1,12 @@
 //! The baker's two-layer rasterization (`raster::TwoLayers`, one draw)
 //! against the two passes it replaces (`TileRenderer::draw` then
 //! `draw_behind`), on a synthetic planes scene like the trained baker's: a
-//! sphere's surface voxels on a 96³ grid, each with the plane facing its
+//! two nested spheres' surface voxels on a 192³ grid, each with the plane facing its
 //! normal's main axis and, where the normal leans, the second one (grown
 //! by an eighth of a voxel into their neighbours, so coplanar overlaps and
 //! crossing planes are common), seen at 1600 × 1600 (the bake's 2 × 2
-//! supersampled 800 × 800 view). One core, every tile.
+//! supersampled 800 × 800 view) from two opposite sides. One core,
+//! every tile.
 //!
 //! `cargo bench -p nerflex-hostbench --bench peel`
 
@@ -16,7 +17,7 @@ use std::hint::black_box;
 
 const TILE: usize = 32;
 const SIDE: u32 = 1600;
-const GRID: i32 = 96;
+const GRID: i32 = 192;
 const TEXELS: u32 = 8;
 
 /// The plane through voxel centre `c` facing axis `axis`, half-size `h`.
@@ -44,7 +45,11 @@ fn scene() -> Vec<Quad> {
         for j in 0..GRID {
             for k in 0..GRID {
                 let c = (Vec3::new(i as f32, j as f32, k as f32) + 0.5) * voxel - 1.2;
-                if (c.length() - 1.0).abs() > 0.5 * voxel {
+                // Two nested shells: four surfaces deep through the middle.
+                if [1.0, 0.6]
+                    .iter()
+                    .all(|r| (c.length() - r).abs() > 0.5 * voxel)
+                {
                     continue;
                 }
                 let n = c.normalize().abs().to_array();
@@ -60,8 +65,8 @@ fn scene() -> Vec<Quad> {
     quads
 }
 
-fn view() -> View {
-    let eye = Vec3::new(2.2, -2.6, 1.6);
+/// The camera at `eye` looking at the origin.
+fn view(eye: Vec3) -> View {
     let back = eye.normalize();
     let right = Vec3::Z.cross(back).normalize();
     let up = back.cross(right);
@@ -77,34 +82,47 @@ fn view() -> View {
 }
 
 fn bench(c: &mut Criterion) {
-    let v = view();
     let quads = scene();
-    let projected: Vec<ScreenQuad> = quads
+    // Seen from two opposite sides: the quads' grid order is then back to
+    // front in one view and front to back in the other.
+    let views = [Vec3::new(2.2, -2.6, 1.6), Vec3::new(-2.2, 2.6, 1.6)].map(view);
+    let projected: Vec<Vec<ScreenQuad>> = views
         .iter()
-        .enumerate()
-        .filter_map(|(i, q)| ScreenQuad::project(&v, q, 0, i as u32))
+        .map(|v| {
+            quads
+                .iter()
+                .enumerate()
+                .filter_map(|(i, q)| ScreenQuad::project(v, q, 0, i as u32))
+                .collect()
+        })
         .collect();
     let f0 = vec![255u8; (TEXELS * TEXELS * 4) as usize];
     let f1 = f0.clone();
     let atlas = Atlas::new(TEXELS, TEXELS, &f0, &f1).expect("an atlas");
     let t = TILE as u32;
-    let tiles: Vec<(u32, u32, Vec<&ScreenQuad>)> = (0..SIDE / t)
-        .flat_map(|ty| (0..SIDE / t).map(move |tx| (tx * t, ty * t)))
-        .map(|(x0, y0)| {
-            let bin = projected
-                .iter()
-                .filter(|q| q.overlaps(x0, y0, x0 + t - 1, y0 + t - 1))
-                .collect();
-            (x0, y0, bin)
+    type Tile<'a> = (&'a View, u32, u32, Vec<&'a ScreenQuad>);
+    let tiles: Vec<Tile> = views
+        .iter()
+        .zip(&projected)
+        .flat_map(|(v, projected)| {
+            (0..SIDE / t)
+                .flat_map(|ty| (0..SIDE / t).map(move |tx| (tx * t, ty * t)))
+                .map(move |(x0, y0)| {
+                    let bin: Vec<&ScreenQuad> = projected
+                        .iter()
+                        .filter(|q| q.overlaps(x0, y0, x0 + t - 1, y0 + t - 1))
+                        .collect();
+                    (v, x0, y0, bin)
+                })
         })
-        .filter(|(_, _, bin): &(u32, u32, Vec<&ScreenQuad>)| !bin.is_empty())
+        .filter(|(_, _, _, bin)| !bin.is_empty())
         .collect();
     let mut front = Box::new(TileRenderer::<TILE, TILE>::new());
     let mut behind = Box::new(TileRenderer::<TILE, TILE>::new());
     let mut two = Box::new(TwoLayers::<TILE, TILE>::new());
     let mut redrawn = 0;
-    for (x0, y0, bin) in &tiles {
-        two.begin(&v, *x0, *y0);
+    for (v, x0, y0, bin) in &tiles {
+        two.begin(v, *x0, *y0);
         for q in bin {
             two.draw(q, &atlas);
         }
@@ -120,9 +138,9 @@ fn bench(c: &mut Criterion) {
     g.sample_size(20);
     g.bench_function("two_passes", |b| {
         b.iter(|| {
-            for (x0, y0, bin) in &tiles {
-                front.begin(&v, *x0, *y0);
-                behind.begin(&v, *x0, *y0);
+            for (v, x0, y0, bin) in &tiles {
+                front.begin(v, *x0, *y0);
+                behind.begin(v, *x0, *y0);
                 for q in bin {
                     front.draw(q, &atlas);
                 }
@@ -135,8 +153,8 @@ fn bench(c: &mut Criterion) {
     });
     g.bench_function("one_draw", |b| {
         b.iter(|| {
-            for (x0, y0, bin) in &tiles {
-                two.begin(&v, *x0, *y0);
+            for (v, x0, y0, bin) in &tiles {
+                two.begin(v, *x0, *y0);
                 for q in bin {
                     two.draw(q, &atlas);
                 }

@@ -140,37 +140,38 @@ impl<const W: usize, const H: usize> TwoLayers<W, H> {
                     if b.inv_w > 0.0 && b.quad == sq.id {
                         *undecided = true;
                     }
-                    let (old_front, old_near, old_order) = (*f, *n, *o);
-                    let mut kept = [EMPTY; NEAR];
-                    let mut kept_order = [0; NEAR];
-                    let mut k = 0;
-                    let candidates = core::iter::once((old_front, old_order[0]))
-                        .chain(old_near.into_iter().zip(old_order[2..].iter().copied()));
-                    for (y, oy) in candidates {
-                        if y.inv_w <= 0.0 {
-                            continue;
-                        }
-                        if peels(&px, y.quad, y.inv_w) {
-                            if y.inv_w > b.inv_w || (y.inv_w == b.inv_w && oy < o[1]) {
-                                *b = y;
-                                o[1] = oy;
-                            }
-                        } else if let (Some(slot), Some(so)) =
-                            (kept.get_mut(k), kept_order.get_mut(k))
-                        {
-                            *slot = y;
-                            *so = oy;
-                            k += 1;
-                        } else {
-                            *undecided = true;
-                        }
-                    }
-                    *n = kept;
-                    for (so, ko) in o[2..].iter_mut().zip(kept_order) {
-                        *so = ko;
-                    }
+                    let (old_front, old_seq) = (*f, o[0]);
                     *f = px;
                     o[0] = seq;
+                    let mut place =
+                        |y: GPixel,
+                         oy: Order,
+                         n: &mut [GPixel; NEAR],
+                         o: &mut [Order; 2 + NEAR]| {
+                            if y.inv_w <= 0.0 {
+                                return;
+                            }
+                            if peels(&px, y.quad, y.inv_w) {
+                                if y.inv_w > b.inv_w || (y.inv_w == b.inv_w && oy < o[1]) {
+                                    *b = y;
+                                    o[1] = oy;
+                                }
+                            } else if !keep_near(n, o, y, oy) {
+                                *undecided = true;
+                            }
+                        };
+                    // Near fragments fill their slots from the first, so an
+                    // empty first slot means none (the common case).
+                    if n[0].inv_w > 0.0 {
+                        let (old_near, old_order) = (*n, *o);
+                        for y in n.iter_mut() {
+                            y.inv_w = 0.0;
+                        }
+                        for (&y, &oy) in old_near.iter().zip(&old_order[2..]) {
+                            place(y, oy, n, o);
+                        }
+                    }
+                    place(old_front, old_seq, n, o);
                 } else if iw.is_nan() || iw <= 0.0 {
                     // Never kept by either pass (also NaN).
                 } else if peels(f, sq.id, iw) {
@@ -181,16 +182,8 @@ impl<const W: usize, const H: usize> TwoLayers<W, H> {
                         }
                     }
                 } else if let Some(px) = tri.fragment(sq, atlas, iw, l, &mut other) {
-                    match n
-                        .iter_mut()
-                        .zip(o[2..].iter_mut())
-                        .find(|(y, _)| y.inv_w <= 0.0)
-                    {
-                        Some((slot, so)) => {
-                            *slot = px;
-                            *so = seq;
-                        }
-                        None => *undecided = true,
+                    if !keep_near(n, o, px, seq) {
+                        *undecided = true;
                     }
                 }
             });
@@ -214,5 +207,23 @@ impl<const W: usize, const H: usize> TwoLayers<W, H> {
         }
         self.undecided = false;
         true
+    }
+}
+
+/// Keeps `y` (drawn `oy`-th) in the first free near slot; `false` when all
+/// are taken.
+#[inline(always)]
+fn keep_near(n: &mut [GPixel; NEAR], o: &mut [Order; 2 + NEAR], y: GPixel, oy: Order) -> bool {
+    match n
+        .iter_mut()
+        .zip(o[2..].iter_mut())
+        .find(|(slot, _)| slot.inv_w <= 0.0)
+    {
+        Some((slot, so)) => {
+            *slot = y;
+            *so = oy;
+            true
+        }
+        None => false,
     }
 }
