@@ -782,7 +782,14 @@ mod tests {
         assert_eq!(
             m,
             cli_params(
-                &["--epochs", "1.5", "--surface-alpha", "0.1", "--surface", "mesh"],
+                &[
+                    "--epochs",
+                    "1.5",
+                    "--surface-alpha",
+                    "0.1",
+                    "--surface",
+                    "mesh"
+                ],
                 16,
                 5
             )
