@@ -277,7 +277,7 @@ fn a_trained_evaluation_names_its_baker_and_what_it_substitutes() {
 fn requests<'a>(views: &'a ObjectViews, configs: &[(u32, u32)]) -> Vec<pipeline::BakeRequest<'a>> {
     configs
         .iter()
-        .map(|&(g, p)| pipeline::BakeRequest { views, g, p })
+        .map(|&(g, p)| pipeline::BakeRequest::planes(views, g, p))
         .collect()
 }
 
@@ -367,21 +367,9 @@ fn trained_bakes_of_one_network_run_together_after_one_training() {
     let ball = Capture::load(capture(&ball_dir, &[ObjectKind::Ball], 32, 8)).unwrap();
     let ball = ObjectViews::from_capture(&ball, None).unwrap();
     let mixed = [
-        pipeline::BakeRequest {
-            views: &views,
-            g: 12,
-            p: 3,
-        },
-        pipeline::BakeRequest {
-            views: &ball,
-            g: 8,
-            p: 3,
-        },
-        pipeline::BakeRequest {
-            views: &ball,
-            g: 12,
-            p: 5,
-        },
+        pipeline::BakeRequest::planes(&views, 12, 3),
+        pipeline::BakeRequest::planes(&ball, 8, 3),
+        pipeline::BakeRequest::planes(&ball, 12, 5),
     ];
     let d = two.get_or_bake_many(&mixed, None, &Quiet, &label).unwrap();
     let got: Vec<(&str, u32, u32)> = d

@@ -165,10 +165,9 @@ impl TrainedArgs {
         p.surface.keep = self.surface_keep;
         p.surface.grow = self.surface_grow;
         p.surface.depth = self.surface_depth;
-        p.visibility.rounds = self.visibility_rounds.unwrap_or(match self.surface_kind {
-            GeometryKind::Planes => 1,
-            GeometryKind::Mesh | GeometryKind::MeshFilled => 0,
-        });
+        p.visibility.rounds = self
+            .visibility_rounds
+            .unwrap_or(self.surface_kind.default_visibility_rounds());
         p.visibility.margin = self.visibility_margin;
         p
     }

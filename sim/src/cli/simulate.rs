@@ -32,8 +32,8 @@ pub struct Args {
     /// Device: a built-in name (iphone13, pixel4) or a device TOML file.
     #[arg(long, value_name = "NAME|FILE")]
     pub device: String,
-    /// Folder of baked assets, `<object>/g<g>_p<p>/` [default: `assets/`
-    /// beside the scene file].
+    /// Folder of baked assets, `<object>/g<g>_p<p>/` (`…_mesh/` for an
+    /// object planned as a mesh) [default: `assets/` beside the scene file].
     #[arg(long, value_name = "DIR")]
     pub assets: Option<PathBuf>,
     /// Frames to simulate.

@@ -180,6 +180,7 @@ pub(crate) mod tests {
                 name: "o".into(),
                 g: 64,
                 p: 9,
+                geometry: Default::default(),
                 predicted_bytes: 0,
                 file_bytes: 1_000_000,
                 gpu_bytes: 0,

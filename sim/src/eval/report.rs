@@ -271,7 +271,12 @@ pub fn markdown(r: &EvalReport, pictures: &[(String, String)]) -> String {
                     find(s4, d, m)
                         .and_then(|row| row.objects.iter().find(|o| &o.name == n))
                         .map_or("–".into(), |o| {
-                            format!("({}, {}) {} {:.4}", o.g, o.p, mb(o.file_bytes), o.ssim)
+                            let g = if o.geometry.is_planes() {
+                                String::new()
+                            } else {
+                                format!(", {}", o.geometry)
+                            };
+                            format!("({}, {}{g}) {} {:.4}", o.g, o.p, mb(o.file_bytes), o.ssim)
                         })
                 };
                 let _ = writeln!(

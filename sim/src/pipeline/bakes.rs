@@ -1,7 +1,8 @@
-//! Bakes that keep their assets: every (views, g, p) is baked once, written
-//! in the MobileNeRF export layout under a cache folder keyed like the bake
-//! sweep's cache (content hash of the views, g, p, bake settings, baker and
-//! measure versions), and measured on the views' held-out images. A second
+//! Bakes that keep their assets: every (views, g, p, geometry) is baked
+//! once, written in the MobileNeRF export layout under a cache folder keyed
+//! like the bake sweep's cache (content hash of the views, g, p, bake
+//! settings, baker and measure versions), and measured on the views'
+//! held-out images. A second
 //! request — another method choosing the same configuration, a profiler
 //! sample point that the planner picks, a re-run — loads it from there.
 //!
@@ -21,13 +22,24 @@
 //! bake's key adds the field's key, the trained baker's version and its
 //! settings to the hull key's inputs and has another shape
 //! (`<name>-g<g>-p<p>-t<hash>`), so the two bakers never share an entry.
+//!
+//! **Geometry.** A request names its [`Geometry`]. A planes bake (every
+//! bake before the geometry was part of a request) keeps exactly the key
+//! and folder it had, so stored entries stay valid. A mesh bake comes from
+//! the trained baker only (the hull bakes planes; asking it for a mesh is an
+//! error naming the object), with the store's settings but
+//! `--surface mesh`'s geometry and its default visibility rounds
+//! ([`GeometryKind::default_visibility_rounds`]: none), as `nerflex bake
+//! --surface mesh` bakes it; its key hashes those settings and names the
+//! geometry: `<name>-g<g>-p<p>-mesh-t<hash>`.
 
 use super::fields::{FieldStore, StoredField};
 use super::stages::{Progress, Quiet};
 use crate::asset::Asset;
 use crate::bake::sweep::{self, Cache, Fnv64, ObjectViews, Sample};
-use crate::bake::trained::{self, TrainedParams, TRAINED_BAKER_VERSION};
+use crate::bake::trained::{self, GeometryKind, TrainedParams, TRAINED_BAKER_VERSION};
 use crate::bake::{self, BakeParams, BakedObject};
+use crate::geometry::Geometry;
 use crate::metrics::Lpips;
 use crate::train::trainer::TrainSettings;
 use anyhow::Context as _;
@@ -142,6 +154,36 @@ pub struct BakeRequest<'a> {
     pub g: u32,
     /// Patch p.
     pub p: u32,
+    /// The geometry (planes unless the plan chose another).
+    pub geometry: Geometry,
+}
+
+impl<'a> BakeRequest<'a> {
+    /// A planes bake of `views` at (g, p).
+    pub fn planes(views: &'a ObjectViews, g: u32, p: u32) -> Self {
+        Self::new(views, g, p, Geometry::Planes)
+    }
+
+    /// A bake of `views` at (g, p) as `geometry`.
+    pub fn new(views: &'a ObjectViews, g: u32, p: u32, geometry: Geometry) -> Self {
+        Self {
+            views,
+            g,
+            p,
+            geometry,
+        }
+    }
+
+    /// "`name` at g=G p=P", and "as mesh" for a non-planes bake (in
+    /// errors and progress notes).
+    pub fn describe(&self) -> String {
+        let what = format!("{} at g={} p={}", self.views.name, self.g, self.p);
+        if self.geometry.is_planes() {
+            what
+        } else {
+            format!("{what} as {}", self.geometry)
+        }
+    }
 }
 
 impl std::fmt::Debug for BakeStore {
@@ -212,6 +254,15 @@ impl BakeStore {
         progress: &dyn Progress,
         label: &(dyn Fn(usize) -> String + Sync),
     ) -> anyhow::Result<Vec<Baked>> {
+        // Before any bake starts: the hull cannot bake another geometry.
+        if let Some(r) = reqs.iter().find(|r| !self.can_bake(r.geometry)) {
+            return Err(self.cannot_bake(r));
+        }
+        // And before any field is trained: the trained baker's settings of
+        // every request (a mesh above its largest g, say).
+        for r in reqs {
+            self.check_trained(r)?;
+        }
         let mut results: Vec<Option<anyhow::Result<Baked>>> =
             (0..reqs.len()).map(|_| None).collect();
         match self.baker {
@@ -273,16 +324,40 @@ impl BakeStore {
             .collect()
     }
 
-    /// The store entry of the bake of `obj` at (g, p).
-    fn entry_dir(&self, obj: &ObjectViews, g: u32, p: u32, with_lpips: bool) -> PathBuf {
-        self.root.join(self.key(obj, g, p, with_lpips))
+    /// The store entry of the bake `r`.
+    fn entry_dir(&self, r: &BakeRequest<'_>, with_lpips: bool) -> PathBuf {
+        self.root
+            .join(self.key_of(r.views, r.g, r.p, r.geometry, with_lpips))
     }
 
     /// Whether the store holds `r`'s bake (measured with LPIPS or not).
     fn is_stored(&self, r: &BakeRequest<'_>, with_lpips: bool) -> bool {
-        self.entry_dir(r.views, r.g, r.p, with_lpips)
-            .join(SAMPLE_FILE)
-            .is_file()
+        self.entry_dir(r, with_lpips).join(SAMPLE_FILE).is_file()
+    }
+
+    /// Whether the store's baker can bake `geometry` (the hull: planes only).
+    pub fn can_bake(&self, geometry: Geometry) -> bool {
+        geometry.is_planes() || matches!(self.baker, Baker::Trained(_))
+    }
+
+    /// Checks the trained baker's settings of `r` (nothing for the hull).
+    fn check_trained(&self, r: &BakeRequest<'_>) -> anyhow::Result<()> {
+        match self.trained_params(r.g, r.p, r.geometry) {
+            Some((_, params)) => params
+                .validate()
+                .map_err(|e| anyhow::anyhow!("baking {}: {e}", r.describe())),
+            None => Ok(()),
+        }
+    }
+
+    /// The error for a request the store's baker cannot bake.
+    fn cannot_bake(&self, r: &BakeRequest<'_>) -> anyhow::Error {
+        anyhow::anyhow!(
+            "cannot bake {}: the {} baker bakes planes only; a {} bake needs the trained baker (`--baker trained`)",
+            r.describe(),
+            self.baker.name(),
+            r.geometry
+        )
     }
 
     /// Bakes the requests `group` (indices into `reqs`), `jobs` at a time,
@@ -333,8 +408,7 @@ impl BakeStore {
             }
             let next = queue.lock().map(|mut q| q.next()).ok().flatten();
             let Some(i) = next else { break };
-            let r = &reqs[i];
-            let b = self.get_or_bake_with(r.views, r.g, r.p, lpips, progress);
+            let b = self.get_or_bake_with(&reqs[i], lpips, progress);
             if b.is_err() {
                 failed.store(true, std::sync::atomic::Ordering::Relaxed);
             }
@@ -384,26 +458,62 @@ impl BakeStore {
         &self.fields
     }
 
-    /// The trained baker's parameters at (g, p) (`None` for the hull).
-    fn trained_params(&self, g: u32, p: u32) -> Option<(&TrainSettings, TrainedParams)> {
+    /// The trained baker's parameters at (g, p) as `geometry` (`None` for
+    /// the hull): the store's settings; for a geometry other than theirs,
+    /// that geometry with its default visibility rounds, as `nerflex bake
+    /// --surface` sets them when `--visibility-rounds` is not given. (The
+    /// store's own geometry, planes in every pipeline, keeps its settings
+    /// untouched, so a planes bake's key is what it was.)
+    fn trained_params(
+        &self,
+        g: u32,
+        p: u32,
+        geometry: Geometry,
+    ) -> Option<(&TrainSettings, TrainedParams)> {
         match &self.baker {
             Baker::Hull => None,
             Baker::Trained(t) => {
                 let mut params = t.bake.clone();
                 params.grid = g;
                 params.patch = p;
+                let kind = GeometryKind::from(geometry);
+                if params.geometry != kind {
+                    params.geometry = kind;
+                    params.visibility.rounds = kind.default_visibility_rounds();
+                }
                 Some((&t.train, params))
             }
         }
     }
 
-    /// The store key of the bake of `obj` at (g, p): the bake sweep's key
-    /// for the hull; for the trained baker that key's inputs plus the
-    /// field's key, the trained baker's version and settings.
+    /// The store key of the planes bake of `obj` at (g, p): the bake
+    /// sweep's key for the hull; for the trained baker that key's inputs
+    /// plus the field's key, the trained baker's version and settings.
     pub fn key(&self, obj: &ObjectViews, g: u32, p: u32, with_lpips: bool) -> String {
+        self.key_of(obj, g, p, Geometry::Planes, with_lpips)
+    }
+
+    /// The store key of the bake of `obj` at (g, p) as `geometry`: for
+    /// planes [`BakeStore::key`] (unchanged by the geometry's arrival); for
+    /// the mesh the trained key of the mesh's settings, named
+    /// `<name>-g<g>-p<p>-mesh-t<hash>` (the hull, which never bakes a mesh,
+    /// gets its planes key with `-mesh` appended, so the two never meet).
+    pub fn key_of(
+        &self,
+        obj: &ObjectViews,
+        g: u32,
+        p: u32,
+        geometry: Geometry,
+        with_lpips: bool,
+    ) -> String {
         let key = Cache::key(obj, &BakeParams::new(g, p), with_lpips);
-        let Some((train, params)) = self.trained_params(g, p) else {
-            return key;
+        let tag = if geometry.is_planes() {
+            String::new()
+        } else {
+            format!("-{geometry}")
+        };
+        let Some((train, params)) = self.trained_params(g, p, geometry) else {
+            return format!("{key}{tag}");
         };
         let mut h = Fnv64::default();
         h.write(key.as_bytes());
@@ -414,7 +524,7 @@ impl BakeStore {
             )
             .as_bytes(),
         );
-        format!("{}-g{g}-p{p}-t{:016x}", obj.name, h.finish())
+        format!("{}-g{g}-p{p}{tag}-t{:016x}", obj.name, h.finish())
     }
 
     /// The trained field of `obj` (the trained baker only): the one used
@@ -453,29 +563,26 @@ impl BakeStore {
         Ok(field)
     }
 
-    /// The bake of `obj` at (g, p): from the store, or baked, written and
-    /// measured now (training its field first if the trained baker needs
-    /// one that is not in the field store).
-    pub fn get_or_bake(
-        &self,
-        obj: &ObjectViews,
-        g: u32,
-        p: u32,
-        lpips: Option<&Lpips>,
-    ) -> anyhow::Result<Baked> {
-        self.get_or_bake_with(obj, g, p, lpips, &Quiet)
+    /// The bake `r`: from the store, or baked, written and measured now
+    /// (training its field first if the trained baker needs one that is not
+    /// in the field store). A geometry the baker cannot bake is an error
+    /// naming the object and the geometry.
+    pub fn get_or_bake(&self, r: &BakeRequest<'_>, lpips: Option<&Lpips>) -> anyhow::Result<Baked> {
+        self.get_or_bake_with(r, lpips, &Quiet)
     }
 
     /// [`BakeStore::get_or_bake`], telling `progress` how training goes.
     pub fn get_or_bake_with(
         &self,
-        obj: &ObjectViews,
-        g: u32,
-        p: u32,
+        r: &BakeRequest<'_>,
         lpips: Option<&Lpips>,
         progress: &dyn Progress,
     ) -> anyhow::Result<Baked> {
-        let dir = self.entry_dir(obj, g, p, lpips.is_some());
+        if !self.can_bake(r.geometry) {
+            return Err(self.cannot_bake(r));
+        }
+        let (obj, g, p) = (r.views, r.g, r.p);
+        let dir = self.entry_dir(r, lpips.is_some());
         let sample_path = dir.join(SAMPLE_FILE);
         if let Some(sample) = std::fs::read_to_string(&sample_path)
             .ok()
@@ -495,7 +602,7 @@ impl BakeStore {
             });
         }
         let t0 = Instant::now();
-        let (baked, details, field_s, field_trained) = match self.trained_params(g, p) {
+        let (baked, details, field_s, field_trained) = match self.trained_params(g, p, r.geometry) {
             None => {
                 let mut params = BakeParams::new(g, p);
                 params.search_box = obj.search_box;
@@ -505,21 +612,19 @@ impl BakeStore {
                 (baked, None, (0.0, 0.0), false)
             }
             Some((_, params)) => {
+                self.check_trained(r)?;
                 let field = self.field(obj, progress)?;
-                progress.note(&format!(
-                    "baking {} at g={g} p={p} from its field",
-                    obj.name
-                ));
+                progress.note(&format!("baking {} from its field", r.describe()));
                 let views = obj.bake_views();
                 let tb =
                     trained::bake(field.grid.as_ref(), &views, &params).with_context(|| {
                         format!(
-                            "baking {} at g={g} p={p} from its field {}",
-                            obj.name,
+                            "baking {} from its field {}",
+                            r.describe(),
                             field.path.display()
                         )
                     })?;
-                let details = trained_details(&tb.stats, &field);
+                let details = trained_details(&tb.stats, &field, r.geometry);
                 let field_s = (field.train_s, field.load_s);
                 (tb.baked, Some(details), field_s, field.trained_now)
             }
@@ -596,9 +701,14 @@ impl BakeStore {
 
 /// What `bake.json` keeps of a trained bake: its field and the baker's
 /// counts and stage times.
-fn trained_details(s: &trained::TrainedStats, field: &StoredField) -> serde_json::Value {
+fn trained_details(
+    s: &trained::TrainedStats,
+    field: &StoredField,
+    geometry: Geometry,
+) -> serde_json::Value {
     let t = &s.times;
     serde_json::json!({
+        "geometry": geometry,
         "baker": TRAINED_BAKER,
         "baker_version": TRAINED_BAKER_VERSION,
         "field": field.key,
@@ -627,4 +737,73 @@ fn trained_details(s: &trained::TrainedStats, field: &StoredField) -> serde_json
             "atlas": t.atlas_s,
         },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cli::bake_trained::TrainedArgs;
+    use clap::Parser as _;
+
+    /// `nerflex bake`'s trained-baker flags, parsed as the CLI parses them.
+    #[derive(clap::Parser)]
+    struct Flags {
+        #[command(flatten)]
+        trained: TrainedArgs,
+    }
+
+    fn cli_params(args: &[&str], g: u32, p: u32) -> TrainedParams {
+        let argv = std::iter::once("nerflex-bake").chain(args.iter().copied());
+        Flags::try_parse_from(argv).unwrap().trained.params(g, p)
+    }
+
+    #[test]
+    fn a_mesh_request_is_baked_as_nerflex_bake_surface_mesh_bakes_it() {
+        // A store whose settings are `nerflex bake`'s defaults (planes).
+        let planes = cli_params(&[], 16, 5);
+        assert_eq!(planes.geometry, GeometryKind::Planes);
+        let store = BakeStore::with_baker(
+            "unused",
+            Baker::trained(TrainSettings::default(), planes.clone()),
+        );
+        let (_, p) = store.trained_params(16, 5, Geometry::Planes).unwrap();
+        assert_eq!(p, planes, "a planes request keeps the store's settings");
+        let (_, m) = store.trained_params(16, 5, Geometry::Mesh).unwrap();
+        assert_eq!(m, cli_params(&["--surface", "mesh"], 16, 5));
+        assert_eq!((m.geometry, m.visibility.rounds), (GeometryKind::Mesh, 0));
+        // Other settings of the store carry over to its mesh bakes, as the
+        // same flags would with `--surface mesh`.
+        let mut tuned = cli_params(&["--epochs", "1.5", "--surface-alpha", "0.1"], 16, 5);
+        let store = BakeStore::with_baker(
+            "unused",
+            Baker::trained(TrainSettings::default(), tuned.clone()),
+        );
+        let (_, m) = store.trained_params(16, 5, Geometry::Mesh).unwrap();
+        assert_eq!(
+            m,
+            cli_params(
+                &[
+                    "--epochs",
+                    "1.5",
+                    "--surface-alpha",
+                    "0.1",
+                    "--surface",
+                    "mesh"
+                ],
+                16,
+                5
+            )
+        );
+        // The planes' own rounds (not the default) do not reach the mesh.
+        tuned.visibility.rounds = 2;
+        let store =
+            BakeStore::with_baker("unused", Baker::trained(TrainSettings::default(), tuned));
+        let (_, m2) = store.trained_params(16, 5, Geometry::Mesh).unwrap();
+        assert_eq!(m2, m);
+        // The hull has no trained settings and cannot bake a mesh.
+        let hull = BakeStore::new("unused");
+        assert!(hull.trained_params(16, 5, Geometry::Mesh).is_none());
+        assert!(hull.can_bake(Geometry::Planes) && !hull.can_bake(Geometry::Mesh));
+        assert!(store.can_bake(Geometry::Mesh));
+    }
 }

@@ -271,13 +271,29 @@ impl RunResult {
                 self.replans
             );
         }
-        let _ = writeln!(
+        let _ = write!(
             s,
             "  {:<12} {:>4} {:>3} {:>9} {:>9} {:>9} {:>9}",
             "object", "g", "p", "pred MB", "baked MB", "pred SSIM", "SSIM"
         );
+        if self
+            .realised
+            .objects
+            .iter()
+            .any(|o| !o.geometry.is_planes())
+        {
+            s.push_str("  geometry");
+        }
+        s.push('\n');
+        // The geometry column only when the plan bakes something other
+        // than planes (planes-only reports read as before).
+        let geometry = self
+            .realised
+            .objects
+            .iter()
+            .any(|o| !o.geometry.is_planes());
         for o in &self.realised.objects {
-            let _ = writeln!(
+            let _ = write!(
                 s,
                 "  {:<12} {:>4} {:>3} {:>9.2} {:>9.2} {:>9.4} {:>9.4}",
                 o.name,
@@ -288,6 +304,10 @@ impl RunResult {
                 o.predicted_ssim,
                 o.ssim
             );
+            if geometry {
+                let _ = write!(s, "  {}", o.geometry);
+            }
+            s.push('\n');
         }
         let q = &self.realised.quality;
         let _ = writeln!(
@@ -343,7 +363,8 @@ impl RunResult {
     }
 
     /// Writes `report.json`, `plan.json`, `scene.json` and the asset links
-    /// (`assets/<object>/g<g>_p<p>` → the store) into `out`, so
+    /// (`assets/<object>/g<g>_p<p>`, `_mesh` appended for a mesh bake, →
+    /// the store) into `out`, so
     /// `nerflex simulate --scene OUT/scene.json --plan OUT/plan.json` works.
     pub fn write(&self, out: &Path) -> anyhow::Result<()> {
         let predicted = self
@@ -448,11 +469,12 @@ fn interval_lines(views: &[ViewScores], s: &mut String) {
     }
 }
 
-/// `root/<object>/g<g>_p<p>` → the asset in the store (a symbolic link on
-/// Unix, a copy elsewhere).
+/// `root/<object>/g<g>_p<p>` (or `…_mesh`,
+/// [`crate::simulate::assets::asset_dir`]) → the asset in the store (a
+/// symbolic link on Unix, a copy elsewhere).
 fn link_asset(root: &Path, o: &RealisedObject) -> anyhow::Result<()> {
     use anyhow::Context as _;
-    let link = crate::simulate::assets::asset_dir(root, &o.name, o.g, o.p);
+    let link = crate::simulate::assets::asset_dir(root, &o.name, o.g, o.p, o.geometry);
     if let Some(parent) = link.parent() {
         std::fs::create_dir_all(parent)
             .with_context(|| format!("{}: cannot create", parent.display()))?;

@@ -464,11 +464,9 @@ pub fn prepare(
     let reqs: Vec<BakeRequest<'_>> = networks
         .iter()
         .flat_map(|n| {
-            points.iter().map(|&(g, p)| BakeRequest {
-                views: &n.views,
-                g,
-                p,
-            })
+            points
+                .iter()
+                .map(|&(g, p)| BakeRequest::planes(&n.views, g, p))
         })
         .collect();
     let samples = store.get_or_bake_many(&reqs, lpips, progress, &|i| {
@@ -588,6 +586,10 @@ pub struct RealisedObject {
     pub g: u32,
     /// p.
     pub p: u32,
+    /// The geometry it was baked as (left out of JSON for planes, so
+    /// planes-only reports read as before).
+    #[serde(default, skip_serializing_if = "Geometry::is_planes")]
+    pub geometry: Geometry,
     /// Size the planner predicted, bytes.
     pub predicted_bytes: u64,
     /// Size of the baked files, bytes.
@@ -753,7 +755,7 @@ pub fn baseline_plan(
     let mut objects = Vec::new();
     let reqs: Vec<BakeRequest<'_>> = views
         .iter()
-        .map(|&v| BakeRequest { views: v, g, p })
+        .map(|&v| BakeRequest::planes(v, g, p))
         .collect();
     let bakes = store.get_or_bake_many(&reqs, lpips, progress, &|i| {
         format!("{} {} g={g} p={p}", method, reqs[i].views.name)
@@ -790,22 +792,14 @@ pub fn baseline_plan(
     ))
 }
 
-/// Errors unless every planned object is planes: the store bakes and keys
-/// (views, g, p) only, so a mesh choice must not come back as a planes
-/// bake. The pipeline's own profiles are planes, so its plans never pick
-/// mesh; a plan from a two-geometry scene would.
-fn planes_only(plan: &Plan) -> anyhow::Result<()> {
-    match plan.objects.iter().find(|o| !o.geometry.is_planes()) {
-        None => Ok(()),
-        Some(o) => anyhow::bail!(
-            "{} plan: object `{}` is planned as {} (g {}, p {}), but the pipeline bakes planes only; bake it with `nerflex bake --surface {}`",
-            plan.method, o.name, o.geometry, o.g, o.p, o.geometry
-        ),
-    }
-}
-
 /// Stage 3: bakes the plan's configurations (or finds them in the store),
 /// renders the capture's held-out views with all of them and measures.
+///
+/// Each object is baked as its planned geometry: a mesh choice is a mesh
+/// bake of the trained baker ([`BakeStore`], "Geometry"; the hull baker
+/// refuses it with an error naming the object, before any bake starts),
+/// and every size, count and score of the [`RealisedObject`] is the baked
+/// export's.
 pub fn realise(
     prepared: &Prepared,
     plan: &Plan,
@@ -813,7 +807,6 @@ pub fn realise(
     lpips: Option<&Lpips>,
     progress: &dyn Progress,
 ) -> anyhow::Result<Realised> {
-    planes_only(plan)?;
     let store = opts.bake_store();
     progress.stage(
         &format!("baking the {} plan", plan.method),
@@ -827,16 +820,21 @@ pub fn realise(
         .objects
         .iter()
         .map(|o| {
-            Ok(BakeRequest {
-                views: views_of(prepared, plan.method, o)?,
-                g: o.g,
-                p: o.p,
-            })
+            Ok(BakeRequest::new(
+                views_of(prepared, plan.method, o)?,
+                o.g,
+                o.p,
+                o.geometry,
+            ))
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
     let bakes = store.get_or_bake_many(&reqs, lpips, progress, &|i| {
         let o = &plan.objects[i];
-        format!("{} g={} p={}", o.name, o.g, o.p)
+        if o.geometry.is_planes() {
+            format!("{} g={} p={}", o.name, o.g, o.p)
+        } else {
+            format!("{} g={} p={} {}", o.name, o.g, o.p, o.geometry)
+        }
     })?;
     let bakes_wall_s = t_bakes.elapsed().as_secs_f64();
     for (o, b) in plan.objects.iter().zip(bakes) {
@@ -845,6 +843,7 @@ pub fn realise(
             name: o.name.clone(),
             g: o.g,
             p: o.p,
+            geometry: o.geometry,
             predicted_bytes: o.size_bytes,
             file_bytes: b.sample.size_bytes,
             gpu_bytes: b.sample.gpu_bytes,
@@ -1070,38 +1069,6 @@ mod tests {
     use super::*;
     use crate::camera::{Camera, Intrinsics};
     use image::{GrayImage, Luma, RgbaImage};
-
-    #[test]
-    fn a_mesh_choice_is_an_error_not_a_planes_bake() {
-        let object = |name: &str, geometry| PlannedObject {
-            name: name.into(),
-            g: 256,
-            p: 5,
-            size_bytes: 1,
-            quality: 0.9,
-            geometry,
-            config_index: None,
-        };
-        let mut plan = Plan {
-            method: Method::Dp,
-            device: None,
-            budget_bytes: 10,
-            feasible: true,
-            objects: vec![object("chair", Geometry::Planes)],
-            total_size_bytes: 2,
-            total_quality: 1.8,
-            total_quality_q: Default::default(),
-            total_units: 0,
-            budget_units: 0,
-            unit_bytes: 1,
-        };
-        assert!(planes_only(&plan).is_ok());
-        plan.objects.push(object("lego", Geometry::Mesh));
-        assert_eq!(
-            planes_only(&plan).unwrap_err().to_string(),
-            "dp plan: object `lego` is planned as mesh (g 256, p 5), but the pipeline bakes planes only; bake it with `nerflex bake --surface mesh`"
-        );
-    }
 
     #[test]
     fn next_budget_takes_the_overshoot_off_the_planning_budget() {

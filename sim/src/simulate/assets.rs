@@ -3,8 +3,9 @@
 //! their load items from their files and decoded sizes.
 //!
 //! On disk a planned scene's assets live at
-//! `ROOT/<object>/g<g>_p<p>/` in the MobileNeRF export layout
-//! ([`asset_dir`]); `nerflex run` writes them there.
+//! `ROOT/<object>/g<g>_p<p>/` (planes) or `ROOT/<object>/g<g>_p<p>_mesh/`
+//! (a mesh bake) in the MobileNeRF export layout ([`asset_dir`]);
+//! `nerflex run` writes them there.
 
 use super::timeline::LoadItem;
 use super::turntable::{CoverageSource, ViewCoverage};
@@ -12,12 +13,20 @@ use crate::asset::Asset;
 use crate::baselines::Plan;
 use crate::camera::Camera;
 use crate::device::resident_bytes;
+use crate::geometry::Geometry;
 use anyhow::Context as _;
 use std::path::{Path, PathBuf};
 
-/// Where the asset of `object` at (g, p) lives under `root`.
-pub fn asset_dir(root: &Path, object: &str, g: u32, p: u32) -> PathBuf {
-    root.join(object).join(format!("g{g}_p{p}"))
+/// Where the asset of `object` at (g, p) as `geometry` lives under
+/// `root`: `g<g>_p<p>` for planes (the layout's name since before the
+/// geometry was a choice), `g<g>_p<p>_<geometry>` otherwise.
+pub fn asset_dir(root: &Path, object: &str, g: u32, p: u32, geometry: Geometry) -> PathBuf {
+    let name = if geometry.is_planes() {
+        format!("g{g}_p{p}")
+    } else {
+        format!("g{g}_p{p}_{geometry}")
+    };
+    root.join(object).join(name)
 }
 
 /// The objects of a scene, in load order, with their data sizes.
@@ -47,22 +56,17 @@ impl AssetScene {
         let mut assets = Vec::new();
         let mut bytes = Vec::new();
         for o in &plan.objects {
-            // The layout has no geometry (`nerflex run` bakes planes): a
-            // mesh choice must not load the planes asset of its (g, p).
-            if !o.geometry.is_planes() {
-                anyhow::bail!(
-                    "`{}` is planned as {} (g {}, p {}), but asset folders ({}) hold planes bakes only",
-                    o.name,
-                    o.geometry,
-                    o.g,
-                    o.p,
-                    root.display()
-                );
-            }
-            let dir = asset_dir(root, &o.name, o.g, o.p);
+            // Each geometry has its own folder: a mesh choice never loads
+            // the planes asset of its (g, p).
+            let dir = asset_dir(root, &o.name, o.g, o.p, o.geometry);
             if !dir.is_dir() {
+                let what = if o.geometry.is_planes() {
+                    String::new()
+                } else {
+                    format!(" as {}", o.geometry)
+                };
                 anyhow::bail!(
-                    "{}: no baked asset for `{}` at (g {}, p {}) (`nerflex run` writes assets in this layout; `nerflex bake --out` writes one)",
+                    "{}: no baked asset for `{}` at (g {}, p {}){what} (`nerflex run` writes assets in this layout; `nerflex bake --out` writes one)",
                     dir.display(),
                     o.name,
                     o.g,
@@ -167,12 +171,22 @@ mod tests {
     use crate::geometry::Geometry;
 
     #[test]
-    fn a_mesh_choice_does_not_load_a_planes_asset() {
+    fn each_geometry_has_its_own_folder_and_a_mesh_never_loads_the_planes_one() {
+        let root = Path::new("assets");
+        // Planes keep the layout's folder name from before the geometry.
+        assert_eq!(
+            asset_dir(root, "lego", 256, 5, Geometry::Planes),
+            root.join("lego").join("g256_p5")
+        );
+        assert_eq!(
+            asset_dir(root, "lego", 256, 5, Geometry::Mesh),
+            root.join("lego").join("g256_p5_mesh")
+        );
         let dir = tempfile::tempdir().unwrap();
         // The planes asset folder of (256, 5) exists (empty), so only the
-        // geometry check can refuse it.
-        std::fs::create_dir_all(asset_dir(dir.path(), "lego", 256, 5)).unwrap();
-        let plan = Plan {
+        // geometry keeps the mesh choice from it.
+        std::fs::create_dir_all(asset_dir(dir.path(), "lego", 256, 5, Geometry::Planes)).unwrap();
+        let mut plan = Plan {
             method: Method::Dp,
             device: None,
             budget_bytes: 1,
@@ -197,9 +211,21 @@ mod tests {
             .err()
             .unwrap()
             .to_string();
-        assert!(
-            e.starts_with("`lego` is planned as mesh (g 256, p 5)"),
-            "{e}"
+        let mesh_dir = asset_dir(dir.path(), "lego", 256, 5, Geometry::Mesh);
+        assert_eq!(
+            e,
+            format!(
+                "{}: no baked asset for `lego` at (g 256, p 5) as mesh (`nerflex run` writes assets in this layout; `nerflex bake --out` writes one)",
+                mesh_dir.display()
+            )
         );
+        // The planes choice finds its folder (and fails only on loading
+        // the empty folder as an asset).
+        plan.objects[0].geometry = Geometry::Planes;
+        let e = format!(
+            "{:#}",
+            AssetScene::load_plan(&plan, dir.path()).err().unwrap()
+        );
+        assert!(e.starts_with("loading "), "{e}");
     }
 }
