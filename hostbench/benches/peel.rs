@@ -11,8 +11,10 @@
 //! `cargo bench -p nerflex-hostbench --bench peel`
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use nerflex_core::raster::glam::{Mat4, Vec3};
+use nerflex_core::raster::glam::Vec3;
 use nerflex_core::raster::{Atlas, Quad, ScreenQuad, TileRenderer, TwoLayers, Vertex, View};
+use nerflex_sim::camera::{Camera, Intrinsics};
+use nerflex_sim::render::view_of;
 use std::hint::black_box;
 
 const TILE: usize = 32;
@@ -65,27 +67,17 @@ fn scene() -> Vec<Quad> {
     quads
 }
 
-/// The camera at `eye` looking at the origin.
-fn view(eye: Vec3) -> View {
-    let back = eye.normalize();
-    let right = Vec3::Z.cross(back).normalize();
-    let up = back.cross(right);
-    let c2w = Mat4::from_cols(
-        right.extend(0.0),
-        up.extend(0.0),
-        back.extend(0.0),
-        eye.extend(1.0),
-    );
-    let f = 0.5 * SIDE as f32 / (0.5 * 40f32.to_radians()).tan();
-    let c = 0.5 * SIDE as f32;
-    View::new(c2w, f, f, c, c, SIDE, SIDE).expect("a valid view")
+/// A 40° camera on an orbit at `azimuth` degrees, 30° up, looking at the origin.
+fn view(azimuth: f32) -> View {
+    let k = Intrinsics::from_fov_x(40f32.to_radians(), SIDE, SIDE);
+    view_of(&Camera::orbit(azimuth, 30.0, 3.8, Vec3::ZERO, k)).expect("a valid view")
 }
 
 fn bench(c: &mut Criterion) {
     let quads = scene();
     // Seen from two opposite sides: the quads' grid order is then back to
     // front in one view and front to back in the other.
-    let views = [Vec3::new(2.2, -2.6, 1.6), Vec3::new(-2.2, 2.6, 1.6)].map(view);
+    let views = [40.0, 220.0].map(view);
     let projected: Vec<Vec<ScreenQuad>> = views
         .iter()
         .map(|v| {
