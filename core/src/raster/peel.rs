@@ -85,8 +85,8 @@ impl<const W: usize, const H: usize> TwoLayers<W, H> {
         &self.front
     }
 
-    /// The layer behind it: what [`TileRenderer::draw_behind`] gives, once
-    /// [`TwoLayers::resolve`] has run.
+    /// The layer behind it: the samples [`TileRenderer::draw_behind`] gives,
+    /// once [`TwoLayers::resolve`] has run (its counters are not kept).
     pub fn back(&self) -> &TileRenderer<W, H> {
         &self.back
     }
