@@ -9,12 +9,14 @@
 //! - [`fields`]: trained radiance fields kept on disk, one per (views,
 //!   training settings), for the trained baker;
 //! - [`stages`]: the stages as functions;
+//! - [`geometries`]: which geometries the profiler samples (`--geometry`);
 //! - [`one`]: one method on one device (`nerflex run`) and its report;
 //! - [`range`]: the profiler's dynamic range against its views' noise;
 //! - [`views`]: per-view scores of a rendered scene, whole and per object.
 
 pub mod bakes;
 pub mod fields;
+pub mod geometries;
 pub mod one;
 pub mod range;
 pub mod stages;
@@ -22,6 +24,7 @@ pub mod views;
 
 pub use bakes::{BakeRequest, BakeStore, Baked, Baker, TrainedBaker};
 pub use fields::{FieldStore, StoredField};
+pub use geometries::Geometries;
 pub use one::{method_plan, run_one, RunResult, RunTimes};
 pub use stages::{
     baseline_plan, baseline_views, plan_for, prepare, realise, simulate_devices, simulate_on,

@@ -18,7 +18,7 @@ use nerflex_sim::device::Device;
 use nerflex_sim::eval::scale::Scale;
 use nerflex_sim::geometry::Geometry;
 use nerflex_sim::pipeline::{
-    self, BakeRequest, BakeStore, Baker, FieldStore, Input, Options, Quiet,
+    self, BakeRequest, BakeStore, Baker, FieldStore, Geometries, Input, Options, Quiet,
 };
 use nerflex_sim::procedural::ObjectKind;
 use nerflex_sim::simulate::{SimOptions, TurntableSpec};
@@ -338,4 +338,181 @@ fn a_plan_with_one_mesh_object_realises_it_as_a_mesh_export() {
     })
     .unwrap();
     assert_eq!(std::fs::read_to_string(&csv).unwrap().lines().count(), 51);
+}
+
+/// `--geometry both`: the profiler bakes every sample point as planes (the
+/// same store entries as a planes-only run, found there) and as mesh (its
+/// own entries), fits both profiles per object, and the planner plans over
+/// the union of their configurations.
+#[test]
+fn geometry_both_profiles_the_mesh_and_plans_over_the_union() {
+    let dir = tempfile::tempdir().unwrap();
+    let cap = nerflex_tests::small_capture(
+        dir.path(),
+        "capture",
+        &[ObjectKind::Ball, ObjectKind::Box],
+        5,
+        (8, 2),
+        48,
+    );
+    let store = dir.path().join("bakes");
+    let input = Input::Capture(cap);
+    let planes_opts = tiny_options(&store, tiny_baker());
+    assert_eq!(planes_opts.geometries, Geometries::Planes);
+    let planes =
+        pipeline::prepare(&input, &planes_opts, &dir.path().join("a"), None, &Quiet).unwrap();
+    assert!(planes.mesh_samples.is_empty());
+    assert!(planes
+        .scene
+        .objects
+        .iter()
+        .all(|o| o.mesh_profile.is_none()
+            && o.configs.iter().all(|c| c.geometry == Geometry::Planes)));
+
+    let mut both_opts = tiny_options(&store, tiny_baker());
+    both_opts.geometries = Geometries::Both;
+    let both = pipeline::prepare(&input, &both_opts, &dir.path().join("b"), None, &Quiet).unwrap();
+    // The planes samples: the planes-only run's entries, from the store.
+    let dirs = |v: &[pipeline::Baked]| v.iter().map(|b| b.dir.clone()).collect::<Vec<_>>();
+    assert_eq!(dirs(&both.samples), dirs(&planes.samples));
+    assert!(both.samples.iter().all(|b| b.cached));
+    // The mesh samples: the same points, each a mesh entry of the store.
+    let n = both.networks.len();
+    assert_eq!(both.mesh_samples.len(), both.samples.len());
+    assert_eq!(both.mesh_samples.len() % n, 0);
+    let bake_store = both_opts.bake_store();
+    for (m, p) in both.mesh_samples.iter().zip(&both.samples) {
+        assert_eq!(
+            (&m.sample.object, m.sample.g, m.sample.p),
+            (&p.sample.object, p.sample.g, p.sample.p)
+        );
+        assert!(!m.cached);
+        let views = &both
+            .networks
+            .iter()
+            .find(|n| n.name == m.sample.object)
+            .unwrap()
+            .views;
+        let key = bake_store.key_of(views, m.sample.g, m.sample.p, Geometry::Mesh, false);
+        assert!(key.contains("-mesh-t"), "{key}");
+        let entry = m.dir.parent().unwrap();
+        assert_eq!(entry, store.join(&key));
+        let details: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(entry.join("bake.json")).unwrap())
+                .unwrap();
+        assert_eq!(details["geometry"], "mesh");
+    }
+    // Both profiles per object; planes' exactly the planes-only run's.
+    assert_eq!(both.scene.objects.len(), planes.scene.objects.len());
+    for (o, po) in both.scene.objects.iter().zip(&planes.scene.objects) {
+        assert_eq!(o.name, po.name);
+        assert_eq!(o.profile, po.profile);
+        assert!(o.mesh_profile.is_some(), "{}: no mesh profile", o.name);
+        let (pl, me): (Vec<_>, Vec<_>) = o
+            .configs
+            .iter()
+            .partition(|c| c.geometry == Geometry::Planes);
+        assert_eq!(pl.into_iter().copied().collect::<Vec<_>>(), po.configs);
+        assert_eq!(me.len(), po.configs.len(), "{}", o.name);
+    }
+    // `scene.json` is the same scene, in the two-profile form, with both fits.
+    let o0 = &both.scene_json["objects"][0];
+    assert!(o0["profiles"]["mesh"].is_object(), "{o0}");
+    assert!(o0["fit"]["mesh"]["samples"].as_u64().unwrap() > 0, "{o0}");
+    let reread =
+        nerflex_sim::scene_file::parse(&both.scene_json.to_string(), "scene.json").unwrap();
+    assert_eq!(reread.objects, both.scene.objects);
+
+    // The plan draws from the union: every choice one of its object's
+    // configurations (planes or mesh).
+    let device = Device::builtin("pixel4").unwrap();
+    let (plan, _) = pipeline::plan_for(&both, Method::Dp, &device).unwrap();
+    for o in &plan.objects {
+        let so = both
+            .scene
+            .objects
+            .iter()
+            .find(|s| s.name == o.name)
+            .unwrap();
+        assert!(
+            so.configs
+                .iter()
+                .any(|c| (c.g, c.p, c.geometry) == (o.g, o.p, o.geometry)),
+            "{}: ({}, {}, {}) not among its configurations",
+            o.name,
+            o.g,
+            o.p,
+            o.geometry
+        );
+    }
+    // Mesh only (the planes' configurations removed): the planner's
+    // choices are the mesh's, so the union really holds them.
+    let mut mesh_only = both.scene.clone();
+    for o in &mut mesh_only.objects {
+        o.configs.retain(|c| c.geometry == Geometry::Mesh);
+    }
+    let p = nerflex_sim::baselines::plan(
+        Method::Dp,
+        &mesh_only,
+        nerflex_sim::baselines::Budget::new(device.budget()),
+    )
+    .unwrap();
+    assert!(p.objects.iter().all(|o| o.geometry == Geometry::Mesh));
+    // ... and such a plan realises as mesh bakes, as any mesh plan does.
+    let realised = pipeline::realise(&both, &p, &both_opts, None, &Quiet).unwrap();
+    assert!(realised
+        .objects
+        .iter()
+        .all(|o| o.geometry == Geometry::Mesh && o.asset.to_string_lossy().contains("-mesh-t")));
+}
+
+/// `--geometry both` with the hull baker: refused before anything is
+/// written, by `nerflex run` (naming both flags) and by the pipeline.
+#[test]
+fn geometry_both_with_the_hull_is_refused_and_writes_nothing() {
+    use clap::Parser as _;
+    #[derive(clap::Parser)]
+    struct Cli {
+        #[command(flatten)]
+        run: nerflex_sim::cli::run::Args,
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let store = dir.path().join("store");
+    let cli = Cli::try_parse_from([
+        "x",
+        "--preset",
+        "scene4",
+        "--device",
+        "pixel4",
+        "--baker",
+        "hull",
+        "--geometry",
+        "both",
+        "--quiet",
+        "--no-lpips",
+        "--out",
+        out.to_str().unwrap(),
+        "--store",
+        store.to_str().unwrap(),
+    ])
+    .unwrap();
+    let e = nerflex_sim::cli::run::run(cli.run).unwrap_err();
+    let e = format!("{e:#}");
+    assert!(
+        e.contains("--geometry both") && e.contains("--baker hull"),
+        "{e}"
+    );
+    assert!(!out.exists() && !store.exists(), "something was written");
+
+    // The pipeline itself refuses before the capture or segmentation.
+    let cap =
+        nerflex_tests::small_capture(dir.path(), "capture", &[ObjectKind::Ball], 5, (3, 1), 24);
+    let mut opts = tiny_options(&store, Baker::Hull);
+    opts.geometries = Geometries::Both;
+    let e = pipeline::prepare(&Input::Capture(cap), &opts, &out, None, &Quiet)
+        .err()
+        .expect("the hull profiled a mesh");
+    assert!(format!("{e:#}").contains("--geometry both"), "{e:#}");
+    assert!(!out.exists() && !store.exists(), "something was written");
 }

@@ -7,7 +7,7 @@ use crate::baselines::Method;
 use crate::device::Device;
 use crate::eval::scale::{Scale, Sizes};
 use crate::metrics::Lpips;
-use crate::pipeline::{self, Baker, Input, Options, Progress};
+use crate::pipeline::{self, Baker, Geometries, Input, Options, Progress};
 use crate::procedural::Preset;
 use crate::simulate::{self, SimOptions};
 use crate::train::trainer::Level;
@@ -84,6 +84,11 @@ pub struct PipelineArgs {
     /// field may keep floaters there (docs/evaluation.md, "Session 10").
     #[arg(long, value_name = "FRACTION")]
     pub crop_margin: Option<f32>,
+    /// Geometries the profiler samples and the planner chooses from per
+    /// object: `planes`, or `both` (planes and mesh; sample bakes of each,
+    /// a profile per geometry; needs the trained baker).
+    #[arg(long, value_enum, default_value_t = Geometries::Planes)]
+    pub geometry: Geometries,
     /// Leave LPIPS out even when its weights are available.
     #[arg(long)]
     pub no_lpips: bool,
@@ -125,6 +130,14 @@ impl PipelineArgs {
             ..SimOptions::default()
         };
         opts.baker = self.baker_at(scale)?;
+        opts.geometries = self.geometry;
+        if self.geometry == Geometries::Both && opts.baker == Baker::Hull {
+            bail!(if self.baker == Some(BakerName::Hull) {
+                "--geometry both needs the trained baker: --baker hull bakes planes only (leave out --baker hull, or use --geometry planes)"
+            } else {
+                "--geometry both needs the trained baker: --quick (--scale quick) bakes with the hull, which bakes planes only, unless given --baker trained (add --baker trained, or use --geometry planes)"
+            });
+        }
         if let Some(m) = self.crop_margin {
             if !(m.is_finite() && (0.0..=1.0).contains(&m)) {
                 bail!("--crop-margin: must be a fraction in 0..=1 of the object's box, got {m}");
@@ -432,6 +445,43 @@ mod tests {
             let e = options(flags).err().unwrap();
             assert!(format!("{e:#}").contains(name), "{flags:?}: {e:#}");
         }
+    }
+
+    #[test]
+    fn the_geometry_flag_reaches_the_options_and_needs_the_trained_baker() {
+        assert_eq!(options(&[]).unwrap().geometries, Geometries::Planes);
+        assert_eq!(
+            options(&["--geometry", "planes"]).unwrap().geometries,
+            Geometries::Planes
+        );
+        let o = options(&["--geometry", "both"]).unwrap();
+        assert_eq!(o.geometries, Geometries::Both);
+        assert_eq!(o.baker.name(), "trained");
+        let e = options(&["--geometry", "both", "--baker", "hull"]).unwrap_err();
+        let e = format!("{e:#}");
+        assert!(
+            e.contains("--geometry both") && e.contains("--baker hull"),
+            "{e}"
+        );
+        // --quick's hull, not asked for by name: the error says where it came from.
+        let cli = Cli::try_parse_from(["x", "--geometry", "both"]).unwrap();
+        let e = cli
+            .pipeline
+            .options_at(Path::new("OUT"), Scale::Quick)
+            .unwrap_err();
+        let e = format!("{e:#}");
+        assert!(
+            e.contains("--geometry both") && e.contains("--quick") && e.contains("--baker trained"),
+            "{e}"
+        );
+        let cli = Cli::try_parse_from(["x", "--geometry", "both", "--baker", "trained"]).unwrap();
+        let o = cli
+            .pipeline
+            .options_at(Path::new("OUT"), Scale::Quick)
+            .unwrap();
+        assert_eq!(o.geometries, Geometries::Both);
+        let e = options(&["--geometry", "mesh"]).err().unwrap();
+        assert!(format!("{e:#}").contains("--geometry"), "{e:#}");
     }
 
     #[test]

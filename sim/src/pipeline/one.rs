@@ -92,7 +92,12 @@ pub fn run_one(
         capture_s: prepared.timings.capture_s,
         segment_s: prepared.timings.segment_s,
         train_s: prepared.timings.train_s,
-        fields_trained: prepared.samples.iter().filter(|b| b.field_trained).count(),
+        fields_trained: prepared
+            .samples
+            .iter()
+            .chain(&prepared.mesh_samples)
+            .filter(|b| b.field_trained)
+            .count(),
         sample_bakes_s: prepared.timings.sample_bakes_s,
         ..RunTimes::default()
     };
@@ -127,7 +132,13 @@ pub fn run_one(
     let simulation = simulate_on(&realised, device, opts)?;
     times.simulate_s = t_sim.elapsed().as_secs_f64();
     progress.step("simulated");
-    let baked = prepared.samples.iter().filter(|b| !b.cached).count();
+    let all_samples = prepared.samples.len() + prepared.mesh_samples.len();
+    let baked = prepared
+        .samples
+        .iter()
+        .chain(&prepared.mesh_samples)
+        .filter(|b| !b.cached)
+        .count();
     Ok(RunResult {
         label: prepared.label.clone(),
         device: device.name.clone(),
@@ -142,7 +153,7 @@ pub fn run_one(
             .iter()
             .map(|n| (n.name.clone(), n.objects.clone()))
             .collect(),
-        sample_bakes: (baked, prepared.samples.len() - baked),
+        sample_bakes: (baked, all_samples - baked),
         scene_json: prepared.scene_json.clone(),
         baker: opts.baker.name().to_string(),
         times,

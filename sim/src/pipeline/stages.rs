@@ -17,6 +17,7 @@
 //! (not enlarged) views ([`baseline_views`], [`baseline_plan`]).
 
 use super::bakes::{BakeRequest, BakeStore, Baked, Baker};
+use super::geometries::{self, Geometries};
 use super::views::{score_view, ViewScores};
 use crate::bake::sweep::{Fnv64, ObjectViews};
 use crate::baselines::{self, Budget, Method, Plan, PlannedObject, DEFAULT_G, DEFAULT_P};
@@ -29,7 +30,7 @@ use crate::geometry::Geometry;
 use crate::metrics::{Lpips, Metrics};
 use crate::procedural::{arrange, make_capture, CaptureSpec, Layout, Preset, RenderOptions};
 use crate::render::{try_render_scene, RenderOptions as DrawOptions};
-use crate::scene_file::{self, Scene};
+use crate::scene_file::Scene;
 use crate::segment::{self, EnlargeOptions, SegCapture, SegmentOptions, Segmentation};
 use crate::simulate::assets::AssetScene;
 use crate::simulate::{self, SimOptions, Simulation, Turntable, TurntableSpec};
@@ -93,6 +94,9 @@ pub struct Options {
     /// by this fraction of its object's larger box side (0: the paper's
     /// tight crop, [`EnlargeOptions::margin`]).
     pub crop_margin: f32,
+    /// The geometries the profiler samples and the planner chooses from
+    /// (`--geometry`; planes only by default).
+    pub geometries: Geometries,
 }
 
 impl Options {
@@ -115,6 +119,7 @@ impl Options {
             baseline: (DEFAULT_G, DEFAULT_P),
             spread: None,
             crop_margin: 0.0,
+            geometries: Geometries::Planes,
         }
     }
 
@@ -186,8 +191,11 @@ pub struct Prepared {
     pub segmentation: Segmentation,
     /// One entry per network, in segmentation order.
     pub networks: Vec<Network>,
-    /// Every sample bake.
+    /// Every planes sample bake.
     pub samples: Vec<Baked>,
+    /// Every mesh sample bake (none unless [`Options::geometries`] is
+    /// [`Geometries::Both`]).
+    pub mesh_samples: Vec<Baked>,
     /// The planner's scene (fitted profiles on the configuration space).
     pub scene: Scene,
     /// The scene as JSON (profile form, as `nerflex plan --scene` reads it).
@@ -378,6 +386,8 @@ pub fn prepare(
     lpips: Option<&Lpips>,
     progress: &dyn Progress,
 ) -> anyhow::Result<Prepared> {
+    // Before anything is written.
+    opts.geometries.check(&opts.baker)?;
     let mut timings = Timings::default();
     let (seg_cap, capture, label) = match input {
         Input::Composite { dirs, size } => {
@@ -461,36 +471,30 @@ pub fn prepare(
         (networks.len() * points.len()) as u64,
     );
     let t1 = Instant::now();
-    let reqs: Vec<BakeRequest<'_>> = networks
-        .iter()
-        .flat_map(|n| {
-            points
-                .iter()
-                .map(|&(g, p)| BakeRequest::planes(&n.views, g, p))
-        })
-        .collect();
-    let samples = store.get_or_bake_many(&reqs, lpips, progress, &|i| {
+    let reqs = geometries::sample_requests(&networks, &points, opts.geometries)?;
+    let mut samples = store.get_or_bake_many(&reqs, lpips, progress, &|i| {
         let r = &reqs[i];
-        format!("{} g={} p={}", r.views.name, r.g, r.p)
+        let what = format!("{} g={} p={}", r.views.name, r.g, r.p);
+        if r.geometry.is_planes() {
+            what
+        } else {
+            format!("{what} mesh")
+        }
     })?;
-    timings.train_s = samples.iter().map(|b| b.train_s).sum();
+    // Planes first (the requests' order): the rest are the mesh's.
+    let mesh_samples = samples.split_off(reqs.iter().filter(|r| r.geometry.is_planes()).count());
+    timings.train_s = samples.iter().chain(&mesh_samples).map(|b| b.train_s).sum();
     timings.sample_bakes_s = t1.elapsed().as_secs_f64() - timings.train_s;
 
     progress.stage("fitting profiles", 1);
     let t2 = Instant::now();
-    let fit_samples: Vec<fit::Sample> = samples.iter().map(|b| to_fit_sample(&b.sample)).collect();
-    let fits = fit::fit_objects(&fit_samples, &[], None, fit::FamilyChoice::Auto)
-        .context("fitting the profiles")?;
     let space = fit::profiles::Space {
         grids: opts.configs.space_grid.clone(),
         patches: opts.configs.space_patch.clone(),
     };
-    let scene_json = fit::profiles::scene_json(&fits, |_| points.clone(), &space)
-        .context("writing the profiles")?;
+    let (scene, scene_json) = geometries::fit_scene(&samples, &mesh_samples, &points, &space)?;
     timings.profile_s = points_s + t2.elapsed().as_secs_f64();
     progress.step("fitted");
-    let scene = scene_file::parse(&scene_json.to_string(), "fitted profiles")
-        .context("reading the fitted profiles back as a scene")?;
     Ok(Prepared {
         label,
         capture,
@@ -499,25 +503,11 @@ pub fn prepare(
         segmentation,
         networks,
         samples,
+        mesh_samples,
         scene,
         scene_json,
         timings,
     })
-}
-
-fn to_fit_sample(s: &crate::bake::sweep::Sample) -> fit::Sample {
-    fit::Sample {
-        object: s.object.clone(),
-        g: s.g,
-        p: s.p,
-        size: nerflex_core::units::Bytes(s.size_bytes),
-        gpu: Some(nerflex_core::units::Bytes(s.gpu_bytes)),
-        quads: Some(s.quads),
-        ssim: s.ssim,
-        psnr: Some(s.psnr),
-        lpips: s.lpips,
-        line: 0,
-    }
 }
 
 /// Stage 2: the plan of `method` for `device`'s budget, and the seconds it took.
