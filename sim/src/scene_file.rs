@@ -754,6 +754,74 @@ impl Parser<'_> {
     }
 }
 
+/// `planes`' objects with `mesh`'s profile of the same name added as their
+/// mesh profile: one scene whose objects plan over both geometries. Both
+/// must be single-profile scenes (as `nerflex profile fit` writes them)
+/// with the same object names; each comes with the label its errors name
+/// it by (a flag, or a description).
+pub fn union(
+    (planes, planes_label): (&Scene, &str),
+    (mesh, mesh_label): (&Scene, &str),
+) -> Result<Scene, String> {
+    let profile_of = |o: &SceneObject, flag: &str| -> Result<Profile, String> {
+        match (&o.profile, &o.mesh_profile) {
+            (Some(p), None) => Ok(p.clone()),
+            _ => Err(format!(
+                "{flag}: object `{}` is not in single-profile form (one \"profile\", as `nerflex profile fit` writes it); it has {}",
+                o.name,
+                if o.profile.is_none() && o.mesh_profile.is_none() {
+                    "a configuration table"
+                } else {
+                    "several profiles"
+                }
+            )),
+        }
+    };
+    let names = |s: &Scene| s.objects.iter().map(|o| o.name.clone()).collect::<Vec<_>>();
+    let mut objects = Vec::with_capacity(planes.objects.len());
+    for o in &planes.objects {
+        let planes_profile = profile_of(o, planes_label)?;
+        let m = mesh
+            .objects
+            .iter()
+            .find(|m| m.name == o.name)
+            .ok_or_else(|| {
+                format!(
+                    "{mesh_label} has no object `{}` (it has: {})",
+                    o.name,
+                    names(mesh).join(", ")
+                )
+            })?;
+        let mesh_profile = profile_of(m, mesh_label)?;
+        let mut configs = o.configs.clone();
+        configs.extend(m.configs.iter().map(|c| ConfigEntry {
+            geometry: Geometry::Mesh,
+            ..*c
+        }));
+        objects.push(SceneObject {
+            name: o.name.clone(),
+            configs,
+            profile: Some(planes_profile),
+            mesh_profile: Some(mesh_profile),
+        });
+    }
+    if let Some(extra) = mesh
+        .objects
+        .iter()
+        .find(|m| !planes.objects.iter().any(|o| o.name == m.name))
+    {
+        return Err(format!(
+            "{planes_label} has no object `{}` (it has: {})",
+            extra.name,
+            names(planes).join(", ")
+        ));
+    }
+    Ok(Scene {
+        objects,
+        single: planes.single.clone(),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -22,7 +22,7 @@ use crate::fit::{
     FamilyChoice, ObjectFit,
 };
 use crate::geometry::Geometry;
-use crate::scene_file::{self, ConfigEntry, Profile, Scene, SceneObject};
+use crate::scene_file::{self, Scene};
 use anyhow::Context;
 use nerflex_core::units::BYTES_PER_MB;
 use std::fmt::Write as _;
@@ -436,64 +436,7 @@ pub fn combine_report(args: &CombineArgs) -> anyhow::Result<String> {
 }
 
 /// `planes`' objects with `mesh`'s profile of the same name added as their
-/// mesh profile. Both must be planes-profile scenes (as `fit` writes them)
-/// with the same object names.
+/// mesh profile ([`scene_file::union`], errors naming the two flags).
 pub fn combine(planes: &Scene, mesh: &Scene) -> Result<Scene, String> {
-    let profile_of = |o: &SceneObject, flag: &str| -> Result<Profile, String> {
-        match (&o.profile, &o.mesh_profile) {
-            (Some(p), None) => Ok(p.clone()),
-            _ => Err(format!(
-                "{flag}: object `{}` is not in single-profile form (one \"profile\", as `nerflex profile fit` writes it); it has {}",
-                o.name,
-                if o.profile.is_none() && o.mesh_profile.is_none() {
-                    "a configuration table"
-                } else {
-                    "several profiles"
-                }
-            )),
-        }
-    };
-    let names = |s: &Scene| s.objects.iter().map(|o| o.name.clone()).collect::<Vec<_>>();
-    let mut objects = Vec::with_capacity(planes.objects.len());
-    for o in &planes.objects {
-        let planes_profile = profile_of(o, "--planes")?;
-        let m = mesh
-            .objects
-            .iter()
-            .find(|m| m.name == o.name)
-            .ok_or_else(|| {
-                format!(
-                    "--mesh-profiles has no object `{}` (it has: {})",
-                    o.name,
-                    names(mesh).join(", ")
-                )
-            })?;
-        let mesh_profile = profile_of(m, "--mesh-profiles")?;
-        let mut configs = o.configs.clone();
-        configs.extend(m.configs.iter().map(|c| ConfigEntry {
-            geometry: Geometry::Mesh,
-            ..*c
-        }));
-        objects.push(SceneObject {
-            name: o.name.clone(),
-            configs,
-            profile: Some(planes_profile),
-            mesh_profile: Some(mesh_profile),
-        });
-    }
-    if let Some(extra) = mesh
-        .objects
-        .iter()
-        .find(|m| !planes.objects.iter().any(|o| o.name == m.name))
-    {
-        return Err(format!(
-            "--planes has no object `{}` (it has: {})",
-            extra.name,
-            names(planes).join(", ")
-        ));
-    }
-    Ok(Scene {
-        objects,
-        single: planes.single.clone(),
-    })
+    scene_file::union((planes, "--planes"), (mesh, "--mesh-profiles"))
 }

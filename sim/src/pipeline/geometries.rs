@@ -8,7 +8,7 @@
 //!   the trained baker, as mesh (each its own bake store entry), a profile
 //!   fitted per object and geometry, and the planner's scene the union of
 //!   both geometries' configurations, as `nerflex profile combine` joins
-//!   them ([`crate::cli::profile::combine`]).
+//!   them ([`crate::scene_file::union`]).
 //!
 //! The mesh has a largest grid ([`MAX_MESH_GRID`]): sample points and
 //! planner grids above it are left out of the mesh's samples and profile
@@ -148,9 +148,12 @@ pub fn fit_scene(
         .context("--geometry both: the mesh profiles")?;
     let mesh_scene = scene_file::parse(&mesh_json.to_string(), "fitted mesh profiles")
         .context("reading the fitted mesh profiles back as a scene")?;
-    let union = crate::cli::profile::combine(&planes_scene, &mesh_scene)
-        .map_err(anyhow::Error::msg)
-        .context("joining the planes and mesh profiles")?;
+    let union = scene_file::union(
+        (&planes_scene, "the planes profiles"),
+        (&mesh_scene, "the mesh profiles"),
+    )
+    .map_err(anyhow::Error::msg)
+    .context("joining the planes and mesh profiles")?;
     let mut json = union.to_json();
     let fit_of = |v: &Value, name: &str| {
         v["objects"]
