@@ -33,6 +33,25 @@ pub fn tiny_pipeline(store: PathBuf, test_views: usize) -> nerflex_sim::pipeline
     p
 }
 
+/// A short device simulation for `p`: a turntable of `angles` coverage
+/// passes `coverage_width` px wide and `frames` frames (7.5 s a turn).
+pub fn tiny_simulation(
+    p: &mut nerflex_sim::pipeline::Options,
+    angles: usize,
+    coverage_width: u32,
+    frames: usize,
+) {
+    p.turntable = nerflex_sim::simulate::TurntableSpec {
+        angles,
+        coverage_width,
+        ..nerflex_sim::simulate::TurntableSpec::DEFAULT
+    };
+    p.sim = nerflex_sim::simulate::SimOptions {
+        frames,
+        period_s: 7.5,
+    };
+}
+
 /// Renders without the slow effects (edge and texture supersampling,
 /// shadows, ambient occlusion): what the suite's small captures use.
 pub fn fast_render() -> RenderOptions {

@@ -21,7 +21,7 @@ use nerflex_sim::pipeline::{
     self, BakeRequest, BakeStore, Baker, FieldStore, Geometries, Input, Options, Quiet,
 };
 use nerflex_sim::procedural::ObjectKind;
-use nerflex_sim::simulate::{SimOptions, TurntableSpec};
+use nerflex_sim::simulate::TurntableSpec;
 use nerflex_sim::train::trainer::{Level, TrainSettings};
 
 /// A few seconds of training at most.
@@ -172,21 +172,10 @@ fn shared_corners(a: &Asset) -> f64 {
 }
 
 fn tiny_options(store: &Path, baker: Baker) -> Options {
-    let mut o = Options::reduced(store.to_path_buf());
+    let mut o = nerflex_tests::tiny_pipeline(store.to_path_buf(), 2);
     o.baker = baker;
-    o.size = 48;
     o.train_views = 8;
-    o.test_views = 2;
-    o.configs = nerflex_tests::tiny_configs();
-    o.turntable = TurntableSpec {
-        angles: 6,
-        coverage_width: 40,
-        ..TurntableSpec::DEFAULT
-    };
-    o.sim = SimOptions {
-        frames: 100,
-        period_s: 7.5,
-    };
+    nerflex_tests::tiny_simulation(&mut o, 6, 40, 100);
     o
 }
 

@@ -7,28 +7,15 @@
 use nerflex_core::units::Bytes;
 use nerflex_sim::baselines::Method;
 use nerflex_sim::device::Device;
-use nerflex_sim::pipeline::{self, Baker, Input, Options, Quiet};
+use nerflex_sim::pipeline::{self, Input, Options, Quiet};
 use nerflex_sim::procedural::Preset;
-use nerflex_sim::simulate::{SimOptions, TurntableSpec};
+use nerflex_sim::simulate::TurntableSpec;
 use std::path::Path;
 
 fn tiny(store: &Path) -> Options {
-    let mut o = Options::reduced(store.to_path_buf());
     // The hull baker: these tests check the pipeline's machinery, not training.
-    o.baker = Baker::Hull;
-    o.size = 48;
-    o.train_views = 6;
-    o.test_views = 2;
-    o.configs = nerflex_tests::tiny_configs();
-    o.turntable = TurntableSpec {
-        angles: 8,
-        coverage_width: 48,
-        ..TurntableSpec::DEFAULT
-    };
-    o.sim = SimOptions {
-        frames: 300,
-        period_s: 7.5,
-    };
+    let mut o = nerflex_tests::tiny_pipeline(store.to_path_buf(), 2);
+    nerflex_tests::tiny_simulation(&mut o, 8, 48, 300);
     o
 }
 

@@ -14,7 +14,6 @@ use nerflex_sim::device::Device;
 use nerflex_sim::eval::scale::Scale;
 use nerflex_sim::pipeline::{self, BakeStore, Baker, FieldStore, Input, Options, Quiet};
 use nerflex_sim::procedural::ObjectKind;
-use nerflex_sim::simulate::{SimOptions, TurntableSpec};
 use nerflex_sim::train::trainer::{Level, TrainSettings};
 
 /// A capture of `kinds` at `size` px with `views` + 2 held-out views.
@@ -152,15 +151,7 @@ fn tiny_options(store: &Path) -> Options {
     o.baker = tiny_baker();
     o.configs = nerflex_tests::tiny_configs();
     o.baseline = (16, 5);
-    o.turntable = TurntableSpec {
-        angles: 6,
-        coverage_width: 40,
-        ..TurntableSpec::DEFAULT
-    };
-    o.sim = SimOptions {
-        frames: 100,
-        period_s: 7.5,
-    };
+    nerflex_tests::tiny_simulation(&mut o, 6, 40, 100);
     o
 }
 
