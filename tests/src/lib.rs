@@ -33,6 +33,35 @@ pub fn tiny_pipeline(store: PathBuf, test_views: usize) -> nerflex_sim::pipeline
     p
 }
 
+/// A few seconds of training at most: 16³ then 24³, `steps` each.
+pub fn tiny_training(steps: u32) -> nerflex_sim::train::trainer::TrainSettings {
+    use nerflex_sim::train::trainer::{Level, TrainSettings};
+    TrainSettings {
+        levels: vec![
+            Level {
+                res: 16,
+                iters: steps,
+            },
+            Level {
+                res: 24,
+                iters: steps,
+            },
+        ],
+        batch: 1024,
+        ..TrainSettings::default()
+    }
+}
+
+/// The trained baker at the suite's size: [`tiny_training`] (40 steps a
+/// level) and the reduced scale's bake, fine-tuned one epoch.
+pub fn tiny_baker() -> nerflex_sim::pipeline::Baker {
+    let mut bake = nerflex_sim::eval::scale::Scale::Reduced.bake_settings();
+    bake.finetune.epochs = 1.0;
+    bake.fit.steps = 100;
+    bake.fit_samples = 4096;
+    nerflex_sim::pipeline::Baker::trained(tiny_training(40), bake)
+}
+
 /// A short device simulation for `p`: a turntable of `angles` coverage
 /// passes `coverage_width` px wide and `frames` frames (7.5 s a turn).
 pub fn tiny_simulation(

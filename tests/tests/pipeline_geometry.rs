@@ -15,31 +15,14 @@ use nerflex_sim::bake::BakeParams;
 use nerflex_sim::baselines::Method;
 use nerflex_sim::capture::Capture;
 use nerflex_sim::device::Device;
-use nerflex_sim::eval::scale::Scale;
 use nerflex_sim::geometry::Geometry;
 use nerflex_sim::pipeline::{
     self, BakeRequest, BakeStore, Baker, FieldStore, Geometries, Input, Options, Quiet,
 };
 use nerflex_sim::procedural::ObjectKind;
 use nerflex_sim::simulate::TurntableSpec;
-use nerflex_sim::train::trainer::{Level, TrainSettings};
 
-/// A few seconds of training at most.
-fn tiny_training() -> TrainSettings {
-    TrainSettings {
-        levels: vec![Level { res: 16, iters: 40 }, Level { res: 24, iters: 40 }],
-        batch: 1024,
-        ..TrainSettings::default()
-    }
-}
-
-fn tiny_baker() -> Baker {
-    let mut bake = Scale::Reduced.bake_settings();
-    bake.finetune.epochs = 1.0;
-    bake.fit.steps = 100;
-    bake.fit_samples = 4096;
-    Baker::trained(tiny_training(), bake)
-}
+use nerflex_tests::tiny_baker;
 
 fn views_of(dir: &Path, kinds: &[ObjectKind], size: u32, train: usize) -> ObjectViews {
     let cap = nerflex_tests::small_capture(dir, "capture", kinds, 5, (train, 2), size);
@@ -179,17 +162,23 @@ fn tiny_options(store: &Path, baker: Baker) -> Options {
     o
 }
 
-#[test]
-fn a_plan_with_one_mesh_object_realises_it_as_a_mesh_export() {
-    let dir = tempfile::tempdir().unwrap();
-    let cap = nerflex_tests::small_capture(
-        dir.path(),
+/// The two-object capture of the pipeline tests: 8 training and 2
+/// held-out views at 48 px.
+fn ball_and_box(dir: &Path) -> std::path::PathBuf {
+    nerflex_tests::small_capture(
+        dir,
         "capture",
         &[ObjectKind::Ball, ObjectKind::Box],
         5,
         (8, 2),
         48,
-    );
+    )
+}
+
+#[test]
+fn a_plan_with_one_mesh_object_realises_it_as_a_mesh_export() {
+    let dir = tempfile::tempdir().unwrap();
+    let cap = ball_and_box(dir.path());
     let store = dir.path().join("bakes");
     // The profiler's samples from the hull (fast); the plan's bakes from
     // the trained baker, or the hull to see it refuse.
@@ -336,14 +325,7 @@ fn a_plan_with_one_mesh_object_realises_it_as_a_mesh_export() {
 #[test]
 fn geometry_both_profiles_the_mesh_and_plans_over_the_union() {
     let dir = tempfile::tempdir().unwrap();
-    let cap = nerflex_tests::small_capture(
-        dir.path(),
-        "capture",
-        &[ObjectKind::Ball, ObjectKind::Box],
-        5,
-        (8, 2),
-        48,
-    );
+    let cap = ball_and_box(dir.path());
     let store = dir.path().join("bakes");
     let input = Input::Capture(cap);
     let planes_opts = tiny_options(&store, tiny_baker());

@@ -11,41 +11,15 @@ use nerflex_sim::bake::sweep::ObjectViews;
 use nerflex_sim::baselines::Method;
 use nerflex_sim::capture::Capture;
 use nerflex_sim::device::Device;
-use nerflex_sim::eval::scale::Scale;
 use nerflex_sim::pipeline::{self, BakeStore, Baker, FieldStore, Input, Options, Quiet};
 use nerflex_sim::procedural::ObjectKind;
-use nerflex_sim::train::trainer::{Level, TrainSettings};
 
 /// A capture of `kinds` at `size` px with `views` + 2 held-out views.
 fn capture(dir: &Path, kinds: &[ObjectKind], size: u32, views: usize) -> PathBuf {
     nerflex_tests::small_capture(dir, "capture", kinds, 5, (views, 2), size)
 }
 
-/// A few seconds of training at most.
-fn tiny_training(steps: u32) -> TrainSettings {
-    TrainSettings {
-        levels: vec![
-            Level {
-                res: 16,
-                iters: steps,
-            },
-            Level {
-                res: 24,
-                iters: steps,
-            },
-        ],
-        batch: 1024,
-        ..TrainSettings::default()
-    }
-}
-
-fn tiny_baker() -> Baker {
-    let mut bake = Scale::Reduced.bake_settings();
-    bake.finetune.epochs = 1.0;
-    bake.fit.steps = 100;
-    bake.fit_samples = 4096;
-    Baker::trained(tiny_training(40), bake)
-}
+use nerflex_tests::{tiny_baker, tiny_training};
 
 #[test]
 fn the_field_store_trains_once_then_loads() {
