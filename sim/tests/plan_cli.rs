@@ -15,6 +15,14 @@ fn nerflex(args: &[&str]) -> Output {
         .expect("run nerflex")
 }
 
+/// `nerflex plan --scene SCENE --device iphone13`, which must fail: its
+/// standard error.
+fn plan_error(scene: &str) -> String {
+    let out = nerflex(&["plan", "--scene", scene, "--device", "iphone13"]);
+    assert!(!out.status.success(), "planning {scene} succeeded");
+    text(&out.stderr)
+}
+
 fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()
 }
@@ -150,33 +158,14 @@ fn bad_input_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     let bad = dir.path().join("scene.json");
     std::fs::write(&bad, r#"{"objects": [{"name": "a", "configs": [{"g": 1, "p": 1, "size_bytes": -3, "quality": 0.5}]}]}"#).unwrap();
-    let out = nerflex(&[
-        "plan",
-        "--scene",
-        bad.to_str().unwrap(),
-        "--device",
-        "iphone13",
-    ]);
-    assert!(!out.status.success());
-    let e = text(&out.stderr);
+    let e = plan_error(bad.to_str().unwrap());
     assert!(
         e.contains("scene.json: objects[0].configs[0].size_bytes: negative value -3"),
         "{e}"
     );
 
-    let out = nerflex(&[
-        "plan",
-        "--scene",
-        "does/not/exist.json",
-        "--device",
-        "iphone13",
-    ]);
-    assert!(!out.status.success());
-    assert!(
-        text(&out.stderr).contains("does/not/exist.json: cannot read"),
-        "{}",
-        text(&out.stderr)
-    );
+    let e = plan_error("does/not/exist.json");
+    assert!(e.contains("does/not/exist.json: cannot read"), "{e}");
 
     let out = nerflex(&[
         "plan", "--scene", SCENE, "--device", "iphone13", "--method", "magic",
@@ -268,15 +257,7 @@ fn bad_geometry_and_combine_paths_are_errors() {
             {"g": 1, "p": 1, "size_bytes": 1, "quality": 0.5, "geometry": "voxels"}]}]}"#,
     )
     .unwrap();
-    let out = nerflex(&[
-        "plan",
-        "--scene",
-        bad.to_str().unwrap(),
-        "--device",
-        "iphone13",
-    ]);
-    assert!(!out.status.success());
-    let e = text(&out.stderr);
+    let e = plan_error(bad.to_str().unwrap());
     assert!(
         e.contains("objects[0].configs[0].geometry: object \"lego\": unknown geometry \"voxels\""),
         "{e}"

@@ -35,6 +35,22 @@ pub struct Quad {
     pub twist: Vec3,
 }
 
+#[cfg(test)]
+impl Quad {
+    /// A square of edge `e` centred at `c` in the plane y = c.y, facing −y
+    /// (the trained baker's tests stack these in front of a camera on −y).
+    pub(crate) fn facing_minus_y(c: Vec3, e: f32) -> Self {
+        Quad {
+            origin: c - Vec3::new(0.5 * e, 0.0, 0.5 * e),
+            u: Vec3::new(e, 0.0, 0.0),
+            v: Vec3::new(0.0, 0.0, e),
+            normal: -Vec3::Y,
+            voxel: [0; 3],
+            twist: Vec3::ZERO,
+        }
+    }
+}
+
 impl Quad {
     /// The four corners in export order (see the type's docs).
     pub fn corners(&self) -> [Vec3; 4] {

@@ -106,18 +106,6 @@ mod tests {
     use crate::bake::{Aabb, Silhouette};
     use crate::camera::{Camera, Intrinsics};
 
-    /// A flat quad facing −y, centred at `c`, of edge `e`.
-    fn quad_at(c: Vec3, e: f32) -> Quad {
-        Quad {
-            origin: c - Vec3::new(0.5 * e, 0.0, 0.5 * e),
-            u: Vec3::new(e, 0.0, 0.0),
-            v: Vec3::new(0.0, 0.0, e),
-            normal: -Vec3::Y,
-            voxel: [0; 3],
-            twist: Vec3::ZERO,
-        }
-    }
-
     /// A camera on −y looks at a unit sphere; quad 0 sits on the sphere's
     /// near pole, quad 1 floats half a radius in front of it. Each pixel
     /// votes on the texel the ray through the quad's centre reaches: the
@@ -127,8 +115,8 @@ mod tests {
         let field = Sphere::new(Vec3::ZERO, 0.5);
         let p = 3;
         let quads = vec![
-            quad_at(Vec3::new(0.0, -0.5, 0.0), 0.1),
-            quad_at(Vec3::new(0.0, -0.75, 0.0), 0.1),
+            Quad::facing_minus_y(Vec3::new(0.0, -0.5, 0.0), 0.1),
+            Quad::facing_minus_y(Vec3::new(0.0, -0.75, 0.0), 0.1),
         ];
         let mut geo = Geometry {
             cube: Aabb {

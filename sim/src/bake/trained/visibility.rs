@@ -522,14 +522,7 @@ mod tests {
     fn the_layers_give_the_next_gbuffers() {
         use crate::bake::Silhouette;
         use crate::camera::{Camera, Intrinsics};
-        let facing = |c: Vec3, e: f32| Quad {
-            origin: c - Vec3::new(0.5 * e, 0.0, 0.5 * e),
-            u: Vec3::new(e, 0.0, 0.0),
-            v: Vec3::new(0.0, 0.0, e),
-            normal: -Vec3::Y,
-            voxel: [0; 3],
-            twist: Vec3::ZERO,
-        };
+        let facing = Quad::facing_minus_y;
         let p = 3;
         let geo = Geometry {
             cube: Aabb {
