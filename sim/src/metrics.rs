@@ -19,6 +19,7 @@
 //! details and the reference check.
 
 mod composite;
+mod holes;
 mod io;
 mod lpips;
 mod psnr;
@@ -31,6 +32,7 @@ use std::path::PathBuf;
 pub use image::{Rgba, RgbaImage};
 
 pub use composite::WhiteComposite;
+pub use holes::{interior_holes, Holes};
 pub use io::read_png;
 pub use lpips::{Lpips, LpipsFeatures, LPIPS_WEIGHTS_FILE, MIN_LPIPS_SIDE};
 pub use psnr::{format_psnr, psnr, psnr_composited};

@@ -296,16 +296,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     if args.measure {
         let net = lpips(&args)?;
-        let m = obj.measure(
-            &asset,
-            &sweep::fixed_point_render,
-            net.as_ref(),
-            args.renders.is_some(),
-        )?;
+        // The renders are kept for the holes below, and written on request.
+        let m = obj.measure(&asset, &sweep::fixed_point_render, net.as_ref(), true)?;
         let (q, renders) = (m.mean, m.renders);
         for (i, v) in m.views.iter().enumerate() {
             println!("  test view {i}: {}", quality_line(v));
         }
+        let mut holes = crate::metrics::Holes::default();
+        for (img, (_, truth)) in renders.iter().zip(&obj.test) {
+            holes = holes + crate::metrics::interior_holes(img, truth, HOLE_MARGIN)?;
+        }
+        println!(
+            "holes: {} of {} interior object pixels not fully covered ({} not at all), {:.1} % of the squared error",
+            holes.pixels,
+            holes.interior,
+            holes.empty,
+            holes.error_share_percent()
+        );
         if let Some(dir) = &args.renders {
             let stage = crate::output::StagedDir::new(dir)?;
             for (i, (img, (_, truth))) in renders.iter().zip(&obj.test).enumerate() {
@@ -330,6 +337,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+/// Photo pixels within this many of the photo's background are silhouette,
+/// not interior, for the `holes:` line (a 7 × 7 window).
+const HOLE_MARGIN: u32 = 3;
 
 const RENDERS_HINT: &str =
     "--renders: the folder is replaced whole; move that away or choose another --renders";
