@@ -25,6 +25,7 @@
 //! trained field".
 
 pub mod analytic;
+pub mod close;
 pub mod depth;
 pub mod depthcarve;
 pub mod export;
@@ -52,8 +53,9 @@ pub use init::FitSettings;
 pub const MAX_DEPTH_CARVE_ROUNDS: u32 = 8;
 
 /// Version of the trained baker: part of sweep cache keys (3: session 16's
-/// visibility rounds and their fixed-point judgement).
-pub const TRAINED_BAKER_VERSION: u32 = 3;
+/// visibility rounds and their fixed-point judgement; 4: session 18's
+/// closing of the planes' texel opacity).
+pub const TRAINED_BAKER_VERSION: u32 = 4;
 
 /// The geometry a bake extracts from the field.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -110,6 +112,17 @@ impl GeometryKind {
             GeometryKind::Mesh | GeometryKind::MeshFilled => 0,
         }
     }
+
+    /// The closing of texel opacity a bake of this geometry takes unless
+    /// told otherwise ([`TrainedParams::close`]): 3 on the planes (lego
+    /// (128, 17) +0.27 dB, chair +0.11 dB; docs/baking.md, "Session 18"),
+    /// none on the mesh (not measured there).
+    pub fn default_close(self) -> u32 {
+        match self {
+            GeometryKind::Planes => 3,
+            GeometryKind::Mesh | GeometryKind::MeshFilled => 0,
+        }
+    }
 }
 
 /// Settings of a bake from a field.
@@ -128,6 +141,10 @@ pub struct TrainedParams {
     pub geometry: GeometryKind,
     /// Where the quads go in each shell voxel (planes).
     pub surface: extract::SurfaceSettings,
+    /// Before the hull carve, a transparent texel with at least this many
+    /// opaque neighbours (of 8) in its patch becomes opaque
+    /// ([`close::close`]; 0: off).
+    pub close: u32,
     /// Empty the texels outside the training views' visual hull.
     pub hull_carve: bool,
     /// A texel is outside only where a view shows background on every
@@ -178,6 +195,7 @@ impl TrainedParams {
             depth_carve_rounds: 0,
             depth_carve_margin: 1.0,
             supersample: false,
+            close: GeometryKind::Planes.default_close(),
             hull_carve: true,
             hull_margin: 1,
             geometry: GeometryKind::Planes,
@@ -234,6 +252,13 @@ impl TrainedParams {
             return Err(BakeError::BadParam(format!(
                 "--carve-rounds {} must be at most 16 (each is a G-buffer pass)",
                 self.carve_rounds
+            )));
+        }
+        if self.close > close::NEIGHBOURS {
+            return Err(BakeError::BadParam(format!(
+                "--surface-close {} must be at most {} (a texel's patch neighbours; 0: off)",
+                self.close,
+                close::NEIGHBOURS
             )));
         }
         if self.hull_margin > 16 {
@@ -317,6 +342,8 @@ pub struct TrainedStats {
     pub full_voxels: u64,
     /// Quads with an opaque texel.
     pub extracted_quads: u64,
+    /// Texels the closing made opaque ([`TrainedParams::close`]).
+    pub closed_texels: u64,
     /// The move onto the field's visible depth.
     pub depth: depth::DepthReport,
     /// Quads dropped because the training views show them mostly against
@@ -438,6 +465,9 @@ pub fn bake(
     // A point on an opaque object projects onto its silhouette in every
     // view: texels that some training view shows as background go.
     let mut geo = geo;
+    // Pinholes and slivers in the planes' texel opacity close first; the
+    // hull carve then empties what that put outside a silhouette.
+    let closed_texels = close::close(&mut geo.opacity, p, params.close);
     if params.hull_carve {
         let sil = super::carve::Silhouettes::new(views).with_margin(params.hull_margin);
         let hull = super::carve::texel_occupancy_hull(&sil, &geo.quads, p);
@@ -731,6 +761,7 @@ pub fn bake(
         full_voxels: geo.full_voxels,
         extracted_quads: nq as u64,
         carved_quads: dropped_quads,
+        closed_texels,
         depth_carve,
         depth: depth_report,
         kept_quads: quads.len() as u64,
@@ -801,8 +832,9 @@ mod tests {
     #[test]
     fn bad_settings_name_their_flag() {
         assert!(TrainedParams::new(32, 5).validate().is_ok());
-        let bad: [Spoil; 16] = [
+        let bad: [Spoil; 17] = [
             ("--surface-keep", |p| p.surface.keep = f32::NAN),
+            ("--surface-close", |p| p.close = 9),
             ("--surface-grow", |p| p.surface.grow = 2.0),
             ("--surface-depth", |p| p.surface.depth = 1.0),
             ("--surface-depth", |p| p.surface.depth = f32::NAN),

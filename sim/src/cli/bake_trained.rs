@@ -84,6 +84,13 @@ pub struct TrainedArgs {
     /// voxels a feature thinner than a voxel crosses without a vertex).
     #[arg(long = "surface", value_parser = parse_geometry, default_value = "planes")]
     pub surface_kind: GeometryKind,
+    /// Before the hull carve, a transparent texel with at least this many
+    /// opaque neighbours (of its 8) in its patch becomes opaque: pinholes
+    /// and slivers a texel or two wide, which the renderer's subsamples
+    /// find as white specks; 0: off [default: 3 on the planes, 0 on the
+    /// mesh] (lego (128, 17) +0.27 dB, docs/baking.md, "Session 18").
+    #[arg(long)]
+    pub surface_close: Option<u32>,
     /// Keep texels outside the training views' visual hull.
     #[arg(long)]
     pub no_hull_carve: bool,
@@ -161,6 +168,9 @@ impl TrainedArgs {
         p.supersample = self.train_supersample;
         p.carve_rounds = self.carve_rounds;
         p.hull_carve = !self.no_hull_carve;
+        p.close = self
+            .surface_close
+            .unwrap_or(self.surface_kind.default_close());
         p.geometry = self.surface_kind;
         p.surface.keep = self.surface_keep;
         p.surface.grow = self.surface_grow;
@@ -290,6 +300,12 @@ pub fn bake(
         println!(
             "trained: {} quads moved onto the field's half-transmittance depth (mean {:.2} voxels; {} pixels with a crossing)",
             s.depth.moved, s.depth.mean_shift, s.depth.crossings
+        );
+    }
+    if params.close > 0 {
+        println!(
+            "trained: {} texels closed (at least {} of their 8 patch neighbours opaque)",
+            s.closed_texels, params.close
         );
     }
     // The rounds that ran: the flag, or the geometry's default.

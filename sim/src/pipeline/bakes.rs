@@ -480,6 +480,7 @@ impl BakeStore {
                 if params.geometry != kind {
                     params.geometry = kind;
                     params.visibility.rounds = kind.default_visibility_rounds();
+                    params.close = kind.default_close();
                 }
                 Some((&t.train, params))
             }
