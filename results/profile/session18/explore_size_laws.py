@@ -8,8 +8,12 @@ the nonlinear ones from a coarse grid plus coordinate search, inside the
 bounds the Rust fitter uses (a in [-g_min/2, 2 g_max], b in [-p_min/2,
 max(256 - 2 p_max, 2 p_max)], powers in [1, 4]). This is an exploration
 tool, not the profiler: the figures in docs/profiler.md's tables come from
-`nerflex profile accuracy` (fixed point), which agrees with this script on
-the laws it implements (surface, quads) to the second decimal.
+`nerflex profile accuracy` (fixed point, bounded LM), which agrees with
+this script on the laws both implement (surface, quads) to the printed
+digits on the trained planes and within 0.6 percentage points on the mesh.
+
+Outputs: explore_planes.txt (results/bake/trained/samples.csv, every law
+below), explore_mesh.txt (samples-mesh.csv: surface, power, quad2, 1.5:2).
 
 Laws (G = g + a, P = p + b; coefficients k, c, m >= 0):
   surface    k G^2 P^2 + m                (the paper's form with e = 2)
