@@ -677,6 +677,38 @@ mod tests {
     }
 
     #[test]
+    fn the_worst_under_prediction_is_signed() {
+        let sized = |g: u32, measured: u64, predicted: u64| LooPoint {
+            g,
+            size_measured: Bytes(measured),
+            size_predicted: Bytes(predicted),
+            ..point(0.9, 0.9, 0.1)
+        };
+        // +20 %, −10 %, −25 % (the worst), exact.
+        let pts = [
+            sized(16, 1_000_000, 1_200_000),
+            sized(32, 2_000_000, 1_800_000),
+            sized(64, 4_000_000, 3_000_000),
+            sized(128, 8_000_000, 8_000_000),
+        ];
+        let e = ErrorSummary::of(&pts);
+        let w = e.worst_under.unwrap();
+        assert_eq!(w.g, 64);
+        assert!(
+            (w.rel + 0.25).abs() < 1e-12 && (w.mb + 1.0).abs() < 1e-12,
+            "{w:?}"
+        );
+        assert_eq!(e.under, 2);
+        assert!((pts[0].size_error_signed_rel() - 0.2).abs() < 1e-12);
+        assert!((pts[1].size_error_rel() - 0.1).abs() < 1e-12);
+        // Nothing under-predicted: the smallest error is positive.
+        let over = ErrorSummary::of(&pts[..1]);
+        assert!(over.worst_under.unwrap().rel > 0.0);
+        assert_eq!(over.under, 0);
+        assert_eq!(ErrorSummary::of(&[]).worst_under, None);
+    }
+
+    #[test]
     fn the_spread_is_over_every_sample() {
         let s = |ssim: f64| Sample {
             object: "o".into(),
