@@ -13,7 +13,8 @@ this script on the laws both implement (surface, quads) to the printed
 digits on the trained planes and within 0.6 percentage points on the mesh.
 
 Outputs: explore_planes.txt (results/bake/trained/samples.csv, every law
-below), explore_mesh.txt (samples-mesh.csv: surface, power, quad2, 1.5:2).
+below; `sat` run separately and appended), explore_mesh.txt
+(samples-mesh.csv: surface, power, quad2, 1.5:2).
 
 Laws (G = g + a, P = p + b; coefficients k, c, m >= 0):
   surface    k G^2 P^2 + m                (the paper's form with e = 2)
@@ -22,6 +23,7 @@ Laws (G = g + a, P = p + b; coefficients k, c, m >= 0):
   quad2      k G^2 P^2 + c G^2 + m        a per-quad constant, e = 2
   power+c    k G^e P^2 + c G^2 + m        e fitted
   e:f        k G^e P^2 + c G^f + m        fixed e, f (quads = 1.5:2)
+  sat        (k G^1.5 P^2 + c G^2)/(1 + G/h) + m   h in [16, 65536] fitted
 
 Usage: explore_size_laws.py SAMPLES.csv law[,law…]
 Prints, per law, leave-one-out and variable-step (g {16, 64, 256} x p {5, 9, 17}
@@ -43,7 +45,8 @@ def load(path):
 
 
 def free_powers(law):
-    return {"power": 1, "power+c": 1}.get(law, 0)
+    """Nonlinear parameters beyond a, b (each searched in [1, 4])."""
+    return {"power": 1, "power+c": 1, "sat": 1}.get(law, 0)
 
 
 def basis(law, th, g, p):
@@ -57,6 +60,10 @@ def basis(law, th, g, p):
         return np.stack([G ** th[2] * P**2, one], 1)
     if law == "quad2":
         return np.stack([G**2 * P**2, G**2, one], 1)
+    if law == "sat":
+        # quads over a saturation 1 + G/h, h = 2^(4 t) for t in [1, 4].
+        d = 1 + G / 2.0 ** (4 * th[2])
+        return np.stack([G**1.5 * P**2 / d, G**2 / d, one], 1)
     if law == "power+c":
         return np.stack([G ** th[2] * P**2, G**2, one], 1)
     e, f = (float(x) for x in law.split(":"))
