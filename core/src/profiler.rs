@@ -7,14 +7,18 @@
 //!
 //! With `G = g + a`, `P = p + b` and the family's power `e` of `G`
 //! ([`Family::Volume`]: `e = 3`, the paper's `g³` voxel count;
-//! [`Family::Surface`]: `e = 2`, surface-like growth):
+//! [`Family::Surface`]: `e = 2`, surface-like growth; [`Family::Quads`]:
+//! `e = 3/2`, the texel term of a law with a per-quad term):
 //!
 //! ```text
-//! size     S(g, p) = k · G^e · P² + m          bytes, grows
-//! quality  Q(g, p) = m − k / (G^e · P²)        SSIM, saturates towards m
+//! size     S(g, p) = k · G^e · P² + c · G² + m   bytes, grows
+//! quality  Q(g, p) = m − k / (G^e · P²)          SSIM, saturates towards m
 //! ```
 //!
-//! (the NeRFlex paper prints the two formulas swapped). The fitted `f64`
+//! (the NeRFlex paper prints the two formulas swapped; its size law is
+//! `c = 0`). The per-quad term `c·G²` is bytes that grow with the quad
+//! count (`∝ G²` on a surface) but not with the p² texels of each quad;
+//! the volume and surface families leave it at 0, the quads family fits it. The fitted `f64`
 //! parameters are [`Params`]; [`Params::size_f64`] and
 //! [`Params::quality_f64`] are the `f64` reference the fixed-point code is
 //! tested against.
@@ -27,9 +31,12 @@
 //! twenty orders of magnitude between families and units), the size constant
 //! `m` in bytes as Q16 (so the sum is rounded once) and the quality asymptote
 //! `m` as signed Q31 (`i64`). Evaluation is integer only (`u128` intermediates, no float,
-//! no heap, no panic): `G^e·P²` is formed in Q32 with a truncation after each
-//! product, sizes are rounded **up** to whole bytes (a size must never be
-//! underestimated) and qualities rounded to nearest
+//! no heap, no panic): `G^e·P²` is formed in Q32 (`G^{3/2} = G·√G` with an
+//! integer square root), for the size with every product and root rounded
+//! **up** and the sum rounded up to whole bytes (a size is never
+//! underestimated by the arithmetic: it is at least the exact value of the
+//! quantised parameters); for the quality truncated after each product,
+//! and qualities rounded to nearest
 //! [`QualityQ`](crate::units::QualityQ) and clamped
 //! to `[0, 1]`.
 //!
@@ -47,15 +54,18 @@
 //! | `P = p + b` | `[0.5, 256]` ([`MIN_BASE`], [`MAX_P_BASE`]) |
 //! | `a`, `b` | `[−1024, 4096]`, `[−64, 256]` (so `G`, `P` can be in range) |
 //! | size `k` | `[0, 2^10]` bytes per unit of `G^e·P²` ([`MAX_SIZE_K`]) |
+//! | size `c` | `[0, 2^24]` bytes per unit of `G²` ([`MAX_SIZE_C`]) |
 //! | size `m` | `[0, 2^40]` bytes ([`MAX_SIZE_M`]) |
 //! | quality `k` | `[0, 2^60]` ([`MAX_QUALITY_K`]) |
 //! | quality `m` | `[−2, 2]` ([`MAX_QUALITY_M`]) |
+//! | quality `c` | `0` (the per-quad term is the size model's only) |
 //!
 //! `g`, `p`, `G` or `P` outside it are rejected with [`ProfileError`];
 //! parameters outside it are rejected when the model is built. The fitter
-//! (`nerflex_sim::fit`) bounds `a ∈ [−g_min/2, 2·g_max]` and
-//! `b ∈ [−p_min/2, 2·p_max]`, so fitted profiles evaluated on their sampled
-//! range always fall inside.
+//! (`nerflex_sim::fit`) bounds `a ∈ [−g_min/2, 2·g_max]`,
+//! `b ∈ [−p_min/2, max(256 − 2·p_max, 2·p_max)]` and `c` to at most the
+//! smallest `S/(g/2)²` measured, so fitted profiles evaluated on their
+//! sampled range always fall inside.
 //!
 //! # Cost
 //!
@@ -84,6 +94,8 @@ pub const MAX_G_BASE: f64 = 4096.0;
 pub const MAX_P_BASE: f64 = 256.0;
 /// Largest size scale `k` (bytes per unit of `G^e·P²`) accepted.
 pub const MAX_SIZE_K: f64 = 1024.0;
+/// Largest per-quad size scale `c` (bytes per unit of `G²`) accepted.
+pub const MAX_SIZE_C: f64 = 16_777_216.0;
 /// Largest size constant `m` accepted (bytes, 2^40 ≈ 1.1 TB).
 pub const MAX_SIZE_M: f64 = 1_099_511_627_776.0;
 /// Largest quality scale `k` accepted (2^60).
@@ -118,6 +130,8 @@ pub enum Field {
     A,
     /// The offset `b` added to `p`.
     B,
+    /// The per-quad scale `c` (size only).
+    C,
     /// The constant / asymptote `m`.
     M,
 }
@@ -128,6 +142,7 @@ impl fmt::Display for Field {
             Field::K => "k",
             Field::A => "a",
             Field::B => "b",
+            Field::C => "c",
             Field::M => "m",
         })
     }

@@ -33,14 +33,16 @@ use std::path::Path;
 /// Why a fit could not be made.
 #[derive(Debug, thiserror::Error)]
 pub enum FitError {
-    /// Not enough distinct points to determine four parameters.
+    /// Not enough distinct points to determine the parameters.
     #[error(
         "{curve}: {points} samples over {grids} g and {patches} p values; \
-         need at least 4 samples with at least 2 distinct g and 2 distinct p"
+         need at least {needed} samples with at least 2 distinct g and 2 distinct p"
     )]
     TooFewPoints {
         /// Which curve.
         curve: Curve,
+        /// Samples the family needs (its parameter count).
+        needed: usize,
         /// Samples given.
         points: usize,
         /// Distinct g values.

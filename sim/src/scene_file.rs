@@ -21,10 +21,12 @@
 //!     "g": [32, 64, 128], "p": [5, 9, 17]}}
 //! ```
 //!
-//! with size `S(g,p) = k·(g+a)^e·(p+b)² + m` in bytes (grows with g and p) and
-//! quality `Q(g,p) = m − k/((g+a)^e·(p+b)²)` (saturates), where `e` is the
-//! optional `g_power`: 3 (the NeRFlex paper's voxel count, the default) or 2
-//! (surface-like growth). Every (g, p) pair of the two lists becomes one
+//! with size `S(g,p) = k·(g+a)^e·(p+b)² + c·(g+a)² + m` in bytes (grows with
+//! g and p) and quality `Q(g,p) = m − k/((g+a)^e·(p+b)²)` (saturates), where
+//! `e` is the optional `g_power`: 3 (the NeRFlex paper's voxel count, the
+//! default), 2 (surface-like growth) or 1.5 (the quads family's texel term),
+//! and `c` the size's optional per-quad term (bytes per unit of `(g+a)²`,
+//! 0 when absent; the quality has none). Every (g, p) pair of the two lists becomes one
 //! configuration, evaluated by the fixed-point `nerflex_core::profiler`
 //! exactly as on the device: sizes rounded up to whole bytes, qualities to
 //! Q1.31 and clamped to `[0, 1]` (a fitted curve may overshoot). Parameters
@@ -154,6 +156,22 @@ pub struct Profile {
 /// (the power of `g + a`), shared with `nerflex_core::profiler`.
 pub type ModelParams = nerflex_core::profiler::Params;
 
+/// One model's parameters in the profile form: `k, a, b, m, g_power`, plus
+/// `c` when it is not 0 (so profiles without the per-quad term are written
+/// exactly as before it existed). `g_power` is an integer for the volume
+/// and surface families and 1.5 for the quads family.
+pub fn params_json(m: &ModelParams) -> Value {
+    let g_power = match m.family.g_power_halves() {
+        h if h % 2 == 0 => Value::from(h / 2),
+        _ => Value::from(m.family.g_power()),
+    };
+    let mut v = serde_json::json!({"k": m.k, "a": m.a, "b": m.b, "m": m.m, "g_power": g_power});
+    if m.c != 0.0 {
+        v["c"] = Value::from(m.c);
+    }
+    v
+}
+
 impl Profile {
     /// Predicted size in bytes, `f64` (not rounded): `k·(g+a)^e·(p+b)² + m`.
     pub fn size_at(&self, g: f64, p: f64) -> f64 {
@@ -170,8 +188,8 @@ impl Profile {
         let s = &self.size;
         let (gg, pp) = (g + s.a, p + s.b);
         let x = s.volume_f64(g, p);
-        let e = f64::from(s.family.g_power());
-        (e * s.k * x / gg, 2.0 * s.k * x / pp)
+        let e = s.family.g_power();
+        (e * s.k * x / gg + 2.0 * s.c * gg, 2.0 * s.k * x / pp)
     }
 
     /// Partial derivatives (dQ/dg, dQ/dp) at (g, p).
@@ -179,19 +197,15 @@ impl Profile {
         let q = &self.quality;
         let (gg, pp) = (g + q.a, p + q.b);
         let x = q.volume_f64(g, p);
-        let e = f64::from(q.family.g_power());
+        let e = q.family.g_power();
         (e * q.k / (x * gg), 2.0 * q.k / (x * pp))
     }
 
     /// The profile in the scene file's profile form.
     pub fn to_json(&self) -> Value {
-        let params = |m: &ModelParams| {
-            serde_json::json!({"k": m.k, "a": m.a, "b": m.b, "m": m.m,
-                               "g_power": m.family.g_power()})
-        };
         serde_json::json!({
-            "size": params(&self.size),
-            "quality": params(&self.quality),
+            "size": params_json(&self.size),
+            "quality": params_json(&self.quality),
             "g": self.g,
             "p": self.p,
         })
@@ -634,21 +648,23 @@ impl Parser<'_> {
                 .ok_or_else(|| self.err(&mpath, "expected an object with k, a, b, m"))?;
             let family = match m.get("g_power") {
                 None | Some(Value::Null) => Family::Volume,
-                Some(v) => v
-                    .as_u64()
-                    .and_then(|e| u32::try_from(e).ok())
-                    .and_then(Family::from_g_power)
-                    .ok_or_else(|| {
-                        self.err(
-                            &format!("{mpath}.g_power"),
-                            format!("must be 3 (volume) or 2 (surface), got {v}"),
-                        )
-                    })?,
+                Some(v) => v.as_f64().and_then(Family::from_g_power).ok_or_else(|| {
+                    self.err(
+                        &format!("{mpath}.g_power"),
+                        format!("must be 3 (volume), 2 (surface) or 1.5 (quads), got {v}"),
+                    )
+                })?,
+            };
+            // The per-quad term: absent in files written before it existed.
+            let c = match m.get("c") {
+                None | Some(Value::Null) => 0.0,
+                Some(_) => self.number(m, &mpath, "c")?.0,
             };
             Ok(ModelParams {
                 k: self.number(m, &mpath, "k")?.0,
                 a: self.number(m, &mpath, "a")?.0,
                 b: self.number(m, &mpath, "b")?.0,
+                c,
                 m: self.number(m, &mpath, "m")?.0,
                 family,
             })
@@ -964,7 +980,50 @@ mod tests {
                 r#"{"k": 0.5, "a": 0, "b": 0, "m": 1000, "g_power": 4}"#,
                 "[2]"
             )),
-            "scene.json: objects[0].profile.size.g_power: must be 3 (volume) or 2 (surface), got 4"
+            "scene.json: objects[0].profile.size.g_power: must be 3 (volume), 2 (surface) or 1.5 (quads), got 4"
+        );
+        // The quads family: g_power 1.5 and a per-quad term c, written back
+        // as read; S(4,3) = 0.5·4^{3/2}·9 + 2·16 + 1000 = 1068.
+        let quads = parse(
+            &scene(
+                r#"{"k": 0.5, "a": 0, "b": 0, "m": 1000, "g_power": 1.5, "c": 2}"#,
+                "[2, 4]",
+            ),
+            "scene.json",
+        )
+        .unwrap();
+        assert_eq!(quads.objects[0].configs[3].size, Bytes(1068));
+        let qprof = quads.objects[0].profile.as_ref().unwrap();
+        assert_eq!(qprof.size.family, Family::Quads);
+        assert_eq!(
+            qprof.size_gradient(4.0, 3.0),
+            (
+                1.5 * 0.5 * 8.0 * 9.0 / 4.0 + 2.0 * 2.0 * 4.0,
+                2.0 * 0.5 * 8.0 * 3.0
+            )
+        );
+        let json = qprof.to_json();
+        assert_eq!(
+            (json["size"]["g_power"].as_f64(), json["size"]["c"].as_f64()),
+            (Some(1.5), Some(2.0))
+        );
+        // Profiles without the term are written as before it existed.
+        assert!(prof.to_json()["size"].get("c").is_none());
+        assert_eq!(prof.to_json()["size"]["g_power"], 2);
+        assert_eq!(parse(&quads.to_json().to_string(), "x").unwrap(), quads);
+        assert_eq!(
+            err(&scene(
+                r#"{"k": 0.5, "a": 0, "b": 0, "m": 1000, "c": "x"}"#,
+                "[2]"
+            )),
+            "scene.json: objects[0].profile.size.c: expected a number, got \"x\""
+        );
+        assert_eq!(
+            err(&scene(
+                r#"{"k": 0.5, "a": 0, "b": 0, "m": 1000, "c": -1}"#,
+                "[2]"
+            )),
+            "scene.json: objects[0].profile.size.c: size c = -1 is outside the supported range [0, 16777216]"
         );
         assert_eq!(
             err(&scene(r#"{"k": 0.5, "a": -3, "b": 0, "m": 1000}"#, "[2]")),

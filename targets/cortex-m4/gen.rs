@@ -248,18 +248,27 @@ fn profiles_source(manifest: &Path, src: &mut String) -> Result<(), BoxError> {
                     .and_then(|x| x.as_f64())
                     .ok_or_else(|| at(&format!(".profile.{curve}.{k}: missing or not a number")))
             };
-            let family = match c.get("g_power").map(|x| x.as_u64()) {
-                None | Some(Some(3)) => "Volume",
-                Some(Some(2)) => "Surface",
+            let family = match c.get("g_power").map(|x| x.as_f64()) {
+                None | Some(Some(3.0)) => "Volume",
+                Some(Some(2.0)) => "Surface",
+                Some(Some(1.5)) => "Quads",
                 Some(_) => {
-                    return Err(at(&format!(".profile.{curve}.g_power: must be 2 or 3")));
+                    return Err(at(&format!(
+                        ".profile.{curve}.g_power: must be 3, 2 or 1.5"
+                    )));
                 }
             };
+            // The per-quad term `c` is optional (0 when absent).
+            let per_quad = match c.get("c") {
+                None => 0.0,
+                Some(_) => num("c")?,
+            };
             Ok(format!(
-                "Params {{ k: {:?}, a: {:?}, b: {:?}, m: {:?}, family: Family::{family} }}",
+                "Params {{ k: {:?}, a: {:?}, b: {:?}, c: {:?}, m: {:?}, family: Family::{family} }}",
                 num("k")?,
                 num("a")?,
                 num("b")?,
+                per_quad,
                 num("m")?
             ))
         };

@@ -246,8 +246,10 @@ fn combine_joins_the_committed_profiles_and_the_union_plans_lego_as_mesh() {
             .all(|(c, m)| c.geometry == M
                 && (c.g, c.p, c.size, c.quality) == (m.g, m.p, m.size, m.quality)));
     }
-    // At 150 MB the profiles predict lego's best use of memory is the mesh.
-    let budget = Budget::new(Bytes::from_mb_u64(150));
+    // At 200 MB the profiles predict lego's best use of memory is the mesh
+    // (from 150 MB with the surface size law before session 18; the quads
+    // law predicts lego's (256, 5) mesh larger, as measured).
+    let budget = Budget::new(Bytes::from_mb_u64(200));
     let u = plan(Method::Dp, &s, budget).unwrap();
     let p = plan(Method::Dp, &planes, budget).unwrap();
     assert_eq!(u.objects[0].name, "lego");

@@ -19,28 +19,32 @@ const PATCHES: [u32; 4] = [5, 9, 13, 17];
 
 /// A baked-object-like size model: surface-like, ~130 MB at (256, 17).
 fn size_truth(family: Family) -> Params {
-    let k = match family {
-        Family::Surface => 6.0,
-        Family::Volume => 0.03,
+    let (k, c) = match family {
+        Family::Surface => (6.0, 0.0),
+        Family::Volume => (0.03, 0.0),
+        Family::Quads => (40.0, 1500.0),
     };
     Params {
         k,
         a: 2.0,
         b: 1.0,
+        c,
         m: 50_000.0,
         family,
     }
 }
 
 fn quality_truth(family: Family) -> Params {
-    let k = match family {
-        Family::Surface => 2.0e3,
-        Family::Volume => 6.0e4,
+    // The quality has no quads family: its truth is the surface one.
+    let (k, family) = match family {
+        Family::Surface | Family::Quads => (2.0e3, Family::Surface),
+        Family::Volume => (6.0e4, Family::Volume),
     };
     Params {
         k,
         a: 4.0,
         b: 0.5,
+        c: 0.0,
         m: 0.965,
         family,
     }
@@ -65,9 +69,14 @@ fn recovers_parameters_without_noise() {
         let refs: Vec<_> = s.iter().collect();
         let f = fit::fit_object("obj", &refs, None, FamilyChoice::Auto).unwrap();
         let (sp, qp) = (f.size.best.params, f.quality.best.params);
-        assert_eq!((sp.family, qp.family), (family, family), "{f:#?}");
+        let quality_family = quality_truth(family).family;
+        assert_eq!((sp.family, qp.family), (family, quality_family), "{f:#?}");
         // Sizes are rounded to whole bytes: parameters within 1e-3.
         assert!(rel(sp.k, size_truth(family).k) < 1e-3, "{sp:?}");
+        assert!(
+            sp.c == size_truth(family).c || rel(sp.c, size_truth(family).c) < 1e-3,
+            "{sp:?}"
+        );
         assert!(
             (sp.a - 2.0).abs() < 1e-2 && (sp.b - 1.0).abs() < 1e-2,
             "{sp:?}"
@@ -191,7 +200,7 @@ fn family_choice_follows_residuals() {
         .collect();
     let d = Domain::of_points(&pts).unwrap();
     let auto = curve::fit(Curve::Size, &pts, d, FamilyChoice::Auto).unwrap();
-    assert_eq!(auto.tried.len(), 2);
+    assert_eq!(auto.tried.len(), 3);
     let vol = curve::fit(Curve::Size, &pts, d, FamilyChoice::Volume).unwrap();
     assert_eq!(vol.tried.len(), 1);
     assert!(vol.best.residuals.rmse > 10.0 * auto.best.residuals.rmse);

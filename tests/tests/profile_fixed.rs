@@ -1,11 +1,14 @@
 //! `nerflex_core::profiler`: the fixed-point evaluation matches the `f64`
 //! reference within `max(0.1 %, 1 byte)` on size and 1e-4 on SSIM, with no
-//! error (overflow) anywhere in the documented range of g, p and parameters.
+//! error (overflow) anywhere in the documented range of g, p and parameters
+//! (every family, the quads family's per-quad term `c` included), and a
+//! size is never below the `f64` value of its quantised parameters (sizes
+//! round up).
 
 use nerflex_core::mck::Config;
 use nerflex_core::profiler::{
     ConfigSpace, Family, Params, Profile, QualityModel, SizeModel, MAX_G, MAX_G_BASE, MAX_P,
-    MAX_P_BASE, MAX_QUALITY_K, MAX_QUALITY_M, MAX_SIZE_K, MAX_SIZE_M, MIN_BASE,
+    MAX_P_BASE, MAX_QUALITY_K, MAX_QUALITY_M, MAX_SIZE_C, MAX_SIZE_K, MAX_SIZE_M, MIN_BASE,
 };
 use nerflex_core::units::{Bytes, QualityQ};
 use proptest::prelude::*;
@@ -25,7 +28,11 @@ fn magnitude(lo: f64, max: f64) -> impl Strategy<Value = f64> {
 }
 
 fn family() -> impl Strategy<Value = Family> {
-    prop_oneof![Just(Family::Volume), Just(Family::Surface)]
+    prop_oneof![
+        Just(Family::Volume),
+        Just(Family::Surface),
+        Just(Family::Quads)
+    ]
 }
 
 /// A base `G` or `P` in `[0.5, max]`, log-uniform, sometimes at the ends.
@@ -52,6 +59,7 @@ fn case() -> impl Strategy<Value = (u32, u32, Params, Params)> {
             magnitude(-40.0, MAX_SIZE_K),
             magnitude(-20.0, MAX_SIZE_M),
             family(),
+            magnitude(-20.0, MAX_SIZE_C),
         ),
         (
             magnitude(-40.0, MAX_QUALITY_K),
@@ -59,11 +67,12 @@ fn case() -> impl Strategy<Value = (u32, u32, Params, Params)> {
             family(),
         ),
     )
-        .prop_map(|(g, p, (gs, ps, gq, pq), (ks, ms, fs), (kq, mq, fq))| {
+        .prop_map(|(g, p, (gs, ps, gq, pq), (ks, ms, fs, cs), (kq, mq, fq))| {
             let size = Params {
                 k: ks,
                 a: gs - g as f64,
                 b: ps - p as f64,
+                c: cs,
                 m: ms,
                 family: fs,
             };
@@ -71,6 +80,7 @@ fn case() -> impl Strategy<Value = (u32, u32, Params, Params)> {
                 k: kq,
                 a: gq - g as f64,
                 b: pq - p as f64,
+                c: 0.0,
                 m: mq,
                 family: fq,
             };
@@ -84,6 +94,16 @@ fn size_ok(got: Bytes, params: &Params, g: u32, p: u32) -> Result<(), TestCaseEr
     prop_assert!(
         (got.0 as f64 - want).abs() <= tol,
         "size at (g {g}, p {p}) {params:?}: fixed {} vs f64 {want}",
+        got.0
+    );
+    // Never below the exact value of the parameters it evaluates (the
+    // quantised ones): every rounding of the size path goes up. The slack
+    // covers f64's own rounding (a few ulps).
+    let quantised = SizeModel::from_params(params).unwrap().params();
+    let floor = quantised.size_f64(g as f64, p as f64);
+    prop_assert!(
+        got.0 as f64 >= floor * (1.0 - 1e-12),
+        "size at (g {g}, p {p}) {quantised:?}: fixed {} below f64 {floor}",
         got.0
     );
     Ok(())
@@ -142,12 +162,13 @@ proptest! {
     #[test]
     fn full_tables_never_fail_in_range(
         (gs, ps, a, b) in space_and_offsets(),
-        (ks, ms, kq, mq) in (magnitude(-40.0, MAX_SIZE_K), magnitude(-20.0, MAX_SIZE_M),
-                             magnitude(-40.0, MAX_QUALITY_K), -MAX_QUALITY_M..=MAX_QUALITY_M),
+        (ks, ms, kq, mq, cs) in (magnitude(-40.0, MAX_SIZE_K), magnitude(-20.0, MAX_SIZE_M),
+                             magnitude(-40.0, MAX_QUALITY_K), -MAX_QUALITY_M..=MAX_QUALITY_M,
+                             magnitude(-20.0, MAX_SIZE_C)),
         (fs, fq) in (family(), family()),
     ) {
-        let size = Params { k: ks, a, b, m: ms, family: fs };
-        let quality = Params { k: kq, a, b, m: mq, family: fq };
+        let size = Params { k: ks, a, b, c: cs, m: ms, family: fs };
+        let quality = Params { k: kq, a, b, c: 0.0, m: mq, family: fq };
         let profile = Profile::from_params(&size, &quality).unwrap();
         let space = ConfigSpace::new(&gs, &ps).unwrap();
         let mut out = [Config { size: Bytes(0), quality: QualityQ::ZERO }; 256];
@@ -169,11 +190,20 @@ fn quantised_parameters_round_trip() {
         k: 0.173,
         a: -7.25,
         b: 1.5,
+        c: 0.0,
         m: 2_000_000.3,
         family: Family::Surface,
     };
     let back = SizeModel::from_params(&size).unwrap().params();
     assert!((back.k / size.k - 1.0).abs() < 1e-9);
+    let quads = Params {
+        c: 1234.567,
+        family: Family::Quads,
+        ..size
+    };
+    let back_quads = SizeModel::from_params(&quads).unwrap().params();
+    assert!((back_quads.c / quads.c - 1.0).abs() < 1e-9);
+    assert_eq!(back_quads.family, Family::Quads);
     assert!((back.a - size.a).abs() < 1e-9 && (back.b - size.b).abs() < 1e-9);
     assert!((back.m - size.m).abs() < 1e-4);
     assert_eq!(back.family, Family::Surface);
@@ -181,6 +211,7 @@ fn quantised_parameters_round_trip() {
         k: 3.2e6,
         a: 32.0,
         b: 4.0,
+        c: 0.0,
         m: 0.953,
         family: Family::Volume,
     };

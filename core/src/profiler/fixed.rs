@@ -5,7 +5,7 @@
 
 use super::{
     ConfigSpace, Curve, Family, Field, Params, ProfileError, MAX_G, MAX_G_BASE, MAX_P, MAX_P_BASE,
-    MAX_QUALITY_K, MAX_QUALITY_M, MAX_SIZE_K, MAX_SIZE_M,
+    MAX_QUALITY_K, MAX_QUALITY_M, MAX_SIZE_C, MAX_SIZE_K, MAX_SIZE_M,
 };
 use crate::mck::Config;
 use crate::units::{Bytes, QualityQ};
@@ -138,8 +138,17 @@ fn offsets(params: &Params, curve: Curve) -> Result<(Offset, Offset), ProfileErr
     Ok((a, b))
 }
 
-/// `G^e · P²` in Q32 for (g, p), or why not.
-fn volume_q32(g: u32, p: u32, a: Offset, b: Offset, family: Family) -> Result<u128, ProfileError> {
+/// How a Q32 product or root drops its extra bits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Round {
+    /// Truncate (the quality path).
+    Down,
+    /// Round up (the size path: a size is never underestimated).
+    Up,
+}
+
+/// `G = g + a` and `P = p + b` in Q32 for (g, p), or why not.
+fn bases_q32(g: u32, p: u32, a: Offset, b: Offset) -> Result<(u128, u128), ProfileError> {
     if g == 0 || g > MAX_G {
         return Err(ProfileError::GridOutOfRange { g });
     }
@@ -149,16 +158,47 @@ fn volume_q32(g: u32, p: u32, a: Offset, b: Offset, family: Family) -> Result<u1
     let out_of_range = ProfileError::BaseOutOfRange { g, p };
     let gb = base_q32(g, a, MAX_G_BASE as u64).ok_or(out_of_range)?;
     let pb = base_q32(p, b, MAX_P_BASE as u64).ok_or(out_of_range)?;
-    // G < 2^44 and P < 2^40 in Q32: the widest product below is
-    // G³ (Q32, < 2^68) · P² (Q32, < 2^48) = 2^116 < 2^128.
-    let mul = |x: u128, y: u128| x.checked_mul(y).map(|v| v >> FRAC);
-    let g2 = mul(gb, gb).ok_or(out_of_range)?;
-    let ge = match family {
-        Family::Volume => mul(g2, gb).ok_or(out_of_range)?,
-        Family::Surface => g2,
-    };
-    let p2 = mul(pb, pb).ok_or(out_of_range)?;
-    mul(ge, p2).ok_or(out_of_range)
+    Ok((gb, pb))
+}
+
+/// `x·y` for Q32 `x`, `y`, in Q32 (`None` on overflow).
+fn mul_q32(x: u128, y: u128, round: Round) -> Option<u128> {
+    let v = x.checked_mul(y)?;
+    let whole = v >> FRAC;
+    let rest = v & ((1u128 << FRAC) - 1);
+    Some(whole + u128::from(round == Round::Up && rest != 0))
+}
+
+/// `√x` for Q32 `x < 2^96`, in Q32.
+fn sqrt_q32(x: u128, round: Round) -> Option<u128> {
+    // √(x/2^32)·2^32 = √(x·2^32); x·2^32 < 2^128.
+    let v = x.checked_shl(FRAC).filter(|v| v >> FRAC == x)?;
+    let r = v.isqrt();
+    // r < 2^64, so r·r cannot overflow.
+    Some(r + u128::from(round == Round::Up && r * r < v))
+}
+
+/// `G^e` in Q32 for `G` in Q32 (`G < 2^44`, so `G³ < 2^68`).
+fn g_pow_q32(gb: u128, family: Family, round: Round) -> Option<u128> {
+    match family {
+        Family::Volume => mul_q32(mul_q32(gb, gb, round)?, gb, round),
+        Family::Surface => mul_q32(gb, gb, round),
+        Family::Quads => mul_q32(gb, sqrt_q32(gb, round)?, round),
+    }
+}
+
+/// `G^e · P²` in Q32 from `G`, `P` in Q32 (`G < 2^44`, `P < 2^40`: the
+/// widest product is `G³ (< 2^68) · P² (< 2^48) < 2^116`).
+fn volume_q32(
+    gb: u128,
+    pb: u128,
+    family: Family,
+    round: Round,
+    err: ProfileError,
+) -> Result<u128, ProfileError> {
+    let ge = g_pow_q32(gb, family, round).ok_or(err)?;
+    let p2 = mul_q32(pb, pb, round).ok_or(err)?;
+    mul_q32(ge, p2, round).ok_or(err)
 }
 
 /// `n + offset` in Q32 if it lies in `[0.5, max]`.
@@ -174,7 +214,7 @@ fn base_q32(n: u32, offset: Offset, max: u64) -> Option<u128> {
 /// Fraction bits of the size constant `m` and of the size before rounding.
 const SIZE_FRAC: u32 = 16;
 
-/// The size model `S = k·G^e·P² + m` in fixed point.
+/// The size model `S = k·G^e·P² + c·G² + m` in fixed point.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct SizeModel {
     /// Bytes per unit of `G^e·P²`.
@@ -183,6 +223,9 @@ pub struct SizeModel {
     pub a: Offset,
     /// Offset added to p.
     pub b: Offset,
+    /// Bytes per unit of `G²` (the per-quad term; zero outside the quads
+    /// family).
+    pub c: Scale,
     /// Constant part (MLP, headers) in bytes, Q16 (`raw / 2^16` bytes), so
     /// that the sum is rounded up to whole bytes once.
     pub m_q16: u64,
@@ -196,6 +239,7 @@ impl SizeModel {
         let c = Curve::Size;
         let k = Scale::from_f64(params.k, c, Field::K, MAX_SIZE_K)?;
         let (a, b) = offsets(params, c)?;
+        let per_quad = Scale::from_f64(params.c, c, Field::C, MAX_SIZE_C)?;
         check_range(params.m, c, Field::M, 0.0, MAX_SIZE_M)?;
         // m in [0, 2^40]: m·2^16 ≤ 2^56 is exact in u64 after rounding.
         let m_q16 = libm::round(params.m * (1u64 << SIZE_FRAC) as f64) as u64;
@@ -203,6 +247,7 @@ impl SizeModel {
             k,
             a,
             b,
+            c: per_quad,
             m_q16,
             family: params.family,
         })
@@ -214,24 +259,42 @@ impl SizeModel {
             k: self.k.to_f64(),
             a: self.a.to_f64(),
             b: self.b.to_f64(),
+            c: self.c.to_f64(),
             m: self.m_q16 as f64 / (1u64 << SIZE_FRAC) as f64,
             family: self.family,
         }
     }
 
-    /// Predicted size at (g, p), rounded up to whole bytes.
+    /// Predicted size at (g, p), rounded up to whole bytes: every product,
+    /// root and shift rounds up, so the result is never below the exact
+    /// value of the quantised parameters.
     pub fn size(&self, g: u32, p: u32) -> Result<Bytes, ProfileError> {
         let overflow = ProfileError::SizeOverflow { g, p };
-        let x = volume_q32(g, p, self.a, self.b, self.family)?;
-        // x < 2^84, mantissa < 2^32: no overflow.
-        let prod = x.checked_mul(u128::from(self.k.mantissa)).ok_or(overflow)?;
-        // k·X in Q16 = prod · 2^(exponent − 32 + 16), rounded up.
-        let shift = i32::from(self.k.exponent) - (FRAC - SIZE_FRAC) as i32;
-        let kx_q16 = shl_or_ceil_shr(prod, shift).ok_or(overflow)?;
-        let total_q16 = kx_q16.checked_add(u128::from(self.m_q16)).ok_or(overflow)?;
+        let (gb, pb) = bases_q32(g, p, self.a, self.b)?;
+        let x = volume_q32(gb, pb, self.family, Round::Up, overflow)?;
+        let kx_q16 = scaled_q16(x, self.k).ok_or(overflow)?;
+        let cx_q16 = if self.c.mantissa == 0 {
+            0
+        } else {
+            let g2 = mul_q32(gb, gb, Round::Up).ok_or(overflow)?;
+            scaled_q16(g2, self.c).ok_or(overflow)?
+        };
+        let total_q16 = kx_q16
+            .checked_add(cx_q16)
+            .and_then(|v| v.checked_add(u128::from(self.m_q16)))
+            .ok_or(overflow)?;
         let ceil = total_q16.div_ceil(1 << SIZE_FRAC);
         u64::try_from(ceil).map(Bytes).map_err(|_| overflow)
     }
+}
+
+/// `scale · x` in Q16 for a Q32 `x`, rounded up (`None` on overflow).
+fn scaled_q16(x: u128, scale: Scale) -> Option<u128> {
+    // x < 2^84, mantissa < 2^32: no overflow in range; checked outside it.
+    let prod = x.checked_mul(u128::from(scale.mantissa))?;
+    // scale·x in Q16 = prod · 2^(exponent − 32 + 16), rounded up.
+    let shift = i32::from(scale.exponent) - (FRAC - SIZE_FRAC) as i32;
+    shl_or_ceil_shr(prod, shift)
 }
 
 /// `v · 2^shift`: a left shift (`None` on overflow) or a right shift
@@ -274,6 +337,8 @@ impl QualityModel {
         let c = Curve::Quality;
         let k = Scale::from_f64(params.k, c, Field::K, MAX_QUALITY_K)?;
         let (a, b) = offsets(params, c)?;
+        // The per-quad term is the size model's only.
+        check_range(params.c, c, Field::C, 0.0, 0.0)?;
         check_range(params.m, c, Field::M, -MAX_QUALITY_M, MAX_QUALITY_M)?;
         // |m| ≤ 2: |m·2^31| ≤ 2^32, exact in i64.
         let m_q31 = libm::round(params.m * (1u64 << 31) as f64) as i64;
@@ -292,6 +357,7 @@ impl QualityModel {
             k: self.k.to_f64(),
             a: self.a.to_f64(),
             b: self.b.to_f64(),
+            c: 0.0,
             m: self.m_q31 as f64 / (1u64 << 31) as f64,
             family: self.family,
         }
@@ -299,7 +365,14 @@ impl QualityModel {
 
     /// Predicted SSIM at (g, p), clamped to `[0, 1]`.
     pub fn quality(&self, g: u32, p: u32) -> Result<QualityQ, ProfileError> {
-        let x = volume_q32(g, p, self.a, self.b, self.family)?;
+        let (gb, pb) = bases_q32(g, p, self.a, self.b)?;
+        let x = volume_q32(
+            gb,
+            pb,
+            self.family,
+            Round::Down,
+            ProfileError::BaseOutOfRange { g, p },
+        )?;
         let term = self.term_q31(x);
         // term ≤ 2^40 and |m| ≤ 2^63 / 2: the difference cannot overflow
         // for models built by `from_params`; saturate for any other.
@@ -394,6 +467,7 @@ mod tests {
             k: 0.17,
             a: 2.5,
             b: -0.25,
+            c: 0.0,
             m: 2.0e6,
             family: Family::Volume,
         }
@@ -404,6 +478,7 @@ mod tests {
             k: 3.2e6,
             a: 32.0,
             b: 4.0,
+            c: 0.0,
             m: 0.953,
             family: Family::Volume,
         }
@@ -434,6 +509,7 @@ mod tests {
             k: 0.5,
             a: 0.0,
             b: 0.0,
+            c: 0.0,
             m: 1000.0,
             family: Family::Volume,
         };
@@ -473,6 +549,7 @@ mod tests {
             k: 2.0,
             a: 0.0,
             b: 0.0,
+            c: 0.0,
             m: 0.0,
             family: Family::Surface,
         };
@@ -481,11 +558,95 @@ mod tests {
     }
 
     #[test]
+    fn quads_family_adds_a_per_quad_term() {
+        let s = Params {
+            k: 2.0,
+            a: 0.0,
+            b: 0.0,
+            c: 3.0,
+            m: 10.0,
+            family: Family::Quads,
+        };
+        let m = SizeModel::from_params(&s).unwrap();
+        // 2·16^{3/2}·3² + 3·16² + 10 = 1152 + 768 + 10.
+        assert_eq!(m.size(16, 3).unwrap(), Bytes(1930));
+        // √2 is irrational: 2·2^{3/2}·1 = 5.657 → rounded up, never down.
+        let exact = s.size_f64(2.0, 1.0);
+        let got = m.size(2, 1).unwrap().0 as f64;
+        assert!(got >= exact && got - exact < 1.0, "{got} vs {exact}");
+        // The per-quad term is the size model's only.
+        assert!(matches!(
+            QualityModel::from_params(&Params { m: 0.9, ..s }),
+            Err(ProfileError::ParamOutOfRange {
+                curve: Curve::Quality,
+                field: Field::C,
+                ..
+            })
+        ));
+        assert!(matches!(
+            SizeModel::from_params(&Params { c: -1.0, ..s }),
+            Err(ProfileError::ParamOutOfRange {
+                curve: Curve::Size,
+                field: Field::C,
+                ..
+            })
+        ));
+        assert!(matches!(
+            SizeModel::from_params(&Params {
+                c: f64::INFINITY,
+                ..s
+            }),
+            Err(ProfileError::NotFinite {
+                field: Field::C,
+                ..
+            })
+        ));
+        // A quality model of the quads family's power is valid (c = 0).
+        let q = QualityModel::from_params(&Params {
+            k: 8.0,
+            c: 0.0,
+            m: 1.0,
+            ..s
+        })
+        .unwrap();
+        // 1 − 8/(4^{3/2}·2²) = 0.75.
+        assert!((q.quality(4, 2).unwrap().to_f64() - 0.75).abs() < 1e-9);
+    }
+
+    #[test]
+    fn sizes_round_up_never_down() {
+        // Square roots and products that are not exact in Q32.
+        for family in Family::ALL {
+            let s = Params {
+                k: 0.3,
+                a: 0.1,
+                b: 0.7,
+                c: 1.7,
+                m: 0.1,
+                family,
+            };
+            let model = SizeModel::from_params(&s).unwrap();
+            let q = model.params();
+            for g in [1, 3, 7, 100, 1023] {
+                for p in [1, 2, 5, 63] {
+                    let exact = q.size_f64(g as f64, p as f64);
+                    let got = model.size(g, p).unwrap().0 as f64;
+                    assert!(
+                        got >= exact * (1.0 - 1e-15) && got <= exact + 1.0 + exact * 1e-9,
+                        "{family:?} ({g}, {p}): {got} vs {exact}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
     fn extremes_of_the_documented_range_do_not_overflow() {
         let big = Params {
             k: MAX_SIZE_K,
             a: MAX_G_BASE - MAX_G as f64,
             b: MAX_P_BASE - MAX_P as f64,
+            c: MAX_SIZE_C,
             m: MAX_SIZE_M,
             family: Family::Volume,
         };
@@ -495,12 +656,24 @@ mod tests {
             .unwrap();
         assert_eq!(
             s.0,
-            (1u64 << 10) * (1u64 << 36) * (1u64 << 16) + (1u64 << 40)
+            (1u64 << 10) * (1u64 << 36) * (1u64 << 16) + (1u64 << 24) * (1u64 << 24) + (1u64 << 40)
+        );
+        let quads = SizeModel::from_params(&Params {
+            family: Family::Quads,
+            ..big
+        })
+        .unwrap()
+        .size(MAX_G, MAX_P)
+        .unwrap();
+        assert_eq!(
+            quads.0,
+            (1u64 << 10) * (1u64 << 18) * (1u64 << 16) + (1u64 << 24) * (1u64 << 24) + (1u64 << 40)
         );
         let tiny = Params {
             k: 1e-300,
             a: MIN_BASE - 1.0,
             b: MIN_BASE - 1.0,
+            c: 0.0,
             m: 0.0,
             family: Family::Volume,
         };
@@ -604,6 +777,7 @@ mod tests {
             k: Scale::from_raw(u32::MAX, i16::MAX),
             a: Offset::from_raw(i64::MAX),
             b: Offset::from_raw(i64::MIN),
+            c: Scale::from_raw(u32::MAX, i16::MAX),
             m_q16: u64::MAX,
             family: Family::Volume,
         };
@@ -612,6 +786,7 @@ mod tests {
             k: Scale::from_raw(u32::MAX, i16::MAX),
             a: Offset::from_raw(0),
             b: Offset::from_raw(0),
+            c: Scale::ZERO,
             m_q16: 0,
             family: Family::Volume,
         };

@@ -95,8 +95,10 @@ pub struct FitArgs {
     /// Output scene file (profile form).
     #[arg(long, value_name = "FILE.json")]
     pub out: PathBuf,
-    /// Model family: `auto` fits both `(g+a)³` and `(g+a)²` and keeps the
-    /// lower residual.
+    /// Model family: `auto` fits the size as `(g+a)³`, `(g+a)²` and the
+    /// quads law `(g+a)^1.5·(p+b)² + c·(g+a)²`, the quality as `(g+a)³` and
+    /// `(g+a)²`, and keeps the lowest RMSE of each; `classic` is `auto`
+    /// without the quads law (the fits before it existed).
     #[arg(long, value_enum, default_value_t = FamilyChoice::Auto)]
     pub family: FamilyChoice,
     /// g values of the written configuration space (default: the sampled ones).
@@ -219,7 +221,7 @@ fn describe(f: &ObjectFit) -> String {
             .join(", ")
     };
     let bound = |c: &fit::CurveFit| {
-        let names = ["a", "b", "m"];
+        let names = ["a", "b", "m", "c"];
         let hit: Vec<&str> = names
             .iter()
             .zip(c.at_bound)
@@ -233,13 +235,18 @@ fn describe(f: &ObjectFit) -> String {
         }
     };
     format!(
-        "{name}: {n} samples\n  size    S = {k:.6e}·(g{a:+.3})^{e}·(p{b:+.3})² + {m:.0} B   RMSE {rmse:.4} MB, max {max:.4} MB ({fam}; RMSE {tried}){sb}\n  quality Q = {qm:.5} − {qk:.6e}/((g{qa:+.3})^{qe}·(p{qb:+.3})²)   RMSE {qr:.5}, max {qx:.5} ({qfam}; RMSE {qtried}){qbd}\n",
+        "{name}: {n} samples\n  size    S = {k:.6e}·(g{a:+.3})^{e}·(p{b:+.3})²{c} + {m:.0} B   RMSE {rmse:.4} MB, max {max:.4} MB ({fam}; RMSE {tried}){sb}\n  quality Q = {qm:.5} − {qk:.6e}/((g{qa:+.3})^{qe}·(p{qb:+.3})²)   RMSE {qr:.5}, max {qx:.5} ({qfam}; RMSE {qtried}){qbd}\n",
         name = f.name,
         n = f.samples,
         k = s.params.k,
         a = s.params.a,
         e = s.params.family.g_power(),
         b = s.params.b,
+        c = if s.params.c != 0.0 {
+            format!(" + {:.3}·(g{:+.3})²", s.params.c, s.params.a)
+        } else {
+            String::new()
+        },
         m = s.params.m,
         rmse = s.residuals.rmse / 1e6,
         max = s.residuals.max_abs / 1e6,

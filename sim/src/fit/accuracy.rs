@@ -25,6 +25,11 @@
 //! is predicted to within its own flatness by any fit. So every error is
 //! also given relative to its object's **spread**, the largest minus the
 //! smallest measured SSIM over all its samples ([`LooPoint::ssim_error_rel`]).
+//!
+//! A size error's sign matters too: an under-predicted size is what makes
+//! a plan overshoot its budget. So every summary also gives the **worst
+//! under-prediction** (the most negative `(predicted − measured)/measured`,
+//! [`ErrorSummary::worst_under`]) and how many sizes were under-predicted.
 
 use super::curve::{Domain, FamilyChoice};
 use super::object::{self, fit_object, ObjectFit};
@@ -127,9 +132,40 @@ impl LooPoint {
 
     /// `|predicted − measured| / measured` size (fraction).
     pub fn size_error_rel(&self) -> f64 {
-        self.size_predicted.0.abs_diff(self.size_measured.0) as f64
-            / (self.size_measured.0.max(1)) as f64
+        self.size_error_signed_rel().abs()
     }
+
+    /// `(predicted − measured) / measured` size (fraction; negative: the
+    /// size was under-predicted).
+    pub fn size_error_signed_rel(&self) -> f64 {
+        self.size_error_signed_mb() * BYTES_PER_MB as f64 / (self.size_measured.0.max(1)) as f64
+    }
+
+    /// `predicted − measured` size in MB (negative: under-predicted).
+    pub fn size_error_signed_mb(&self) -> f64 {
+        let (p, m) = (self.size_predicted.0, self.size_measured.0);
+        let d = p.abs_diff(m) as f64 / BYTES_PER_MB as f64;
+        if p < m {
+            -d
+        } else {
+            d
+        }
+    }
+}
+
+/// The held-out size predicted furthest below its measurement.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WorstUnder {
+    /// Object name.
+    pub object: String,
+    /// Grid.
+    pub g: u32,
+    /// Patch.
+    pub p: u32,
+    /// `(predicted − measured)/measured` (fraction, the smallest of the set).
+    pub rel: f64,
+    /// `predicted − measured` in MB.
+    pub mb: f64,
 }
 
 /// Errors of one object (or of all).
@@ -143,6 +179,12 @@ pub struct ErrorSummary {
     pub size_mb: Stats,
     /// Size error relative to the measured size.
     pub size_rel: Stats,
+    /// The point with the smallest signed relative size error (`None`
+    /// without points); its `rel` is positive when nothing was
+    /// under-predicted.
+    pub worst_under: Option<WorstUnder>,
+    /// Held-out sizes predicted below their measurement.
+    pub under: usize,
 }
 
 impl ErrorSummary {
@@ -157,7 +199,25 @@ impl ErrorSummary {
                     .filter_map(LooPoint::ssim_error_rel),
             ),
             size_mb: Stats::of(points.clone().into_iter().map(LooPoint::size_error_mb)),
-            size_rel: Stats::of(points.into_iter().map(LooPoint::size_error_rel)),
+            size_rel: Stats::of(points.clone().into_iter().map(LooPoint::size_error_rel)),
+            worst_under: points
+                .clone()
+                .into_iter()
+                .min_by(|x, y| {
+                    x.size_error_signed_rel()
+                        .total_cmp(&y.size_error_signed_rel())
+                })
+                .map(|w| WorstUnder {
+                    object: w.object.clone(),
+                    g: w.g,
+                    p: w.p,
+                    rel: w.size_error_signed_rel(),
+                    mb: w.size_error_signed_mb(),
+                }),
+            under: points
+                .into_iter()
+                .filter(|x| x.size_predicted < x.size_measured)
+                .count(),
         }
     }
 }
@@ -419,7 +479,7 @@ pub fn table(acc: &Accuracy) -> String {
     }
     let _ = writeln!(
         out,
-        "{:<16} {:>5} {:>4}  {:>19}  {:>15}  {:>19}  {:>15}  {:<16}",
+        "{:<16} {:>5} {:>4}  {:>19}  {:>15}  {:>19}  {:>15}  {:>11}  {:<16}",
         "object",
         "train",
         "n",
@@ -427,6 +487,7 @@ pub fn table(acc: &Accuracy) -> String {
         "SSIM/spread (%)",
         "size (MB)",
         "size (%)",
+        "worst (%)",
         "family size/SSIM"
     );
     let row = |out: &mut String, name: &str, train: &str, e: &ErrorSummary, fam: &str| {
@@ -436,7 +497,7 @@ pub fn table(acc: &Accuracy) -> String {
         }
         let _ = writeln!(
             out,
-            "{:<16} {:>5} {:>4}  {:>8.4} ± {:<8.4}  {:>6.1} ± {:<6.1}  {:>8.3} ± {:<8.3}  {:>6.2} ± {:<6.2}  {:<16}",
+            "{:<16} {:>5} {:>4}  {:>8.4} ± {:<8.4}  {:>6.1} ± {:<6.1}  {:>8.3} ± {:<8.3}  {:>6.2} ± {:<6.2}  {:>11}  {:<16}",
             name,
             train,
             e.ssim.n,
@@ -448,6 +509,9 @@ pub fn table(acc: &Accuracy) -> String {
             e.size_mb.sd,
             100.0 * e.size_rel.mean,
             100.0 * e.size_rel.sd,
+            e.worst_under
+                .as_ref()
+                .map_or("-".into(), |w| format!("{:+.1}", 100.0 * w.rel)),
             fam
         );
     };
@@ -465,9 +529,22 @@ pub fn table(acc: &Accuracy) -> String {
         );
     }
     row(&mut out, "all", "", &acc.all, "");
+    if let Some(w) = &acc.all.worst_under {
+        let _ = writeln!(
+            out,
+            "worst (%) = smallest (predicted − measured)/measured size: all {:+.1} % ({:+.3} MB) at {} (g {}, p {}); {} of {} sizes under-predicted",
+            100.0 * w.rel,
+            w.mb,
+            w.object,
+            w.g,
+            w.p,
+            acc.all.under,
+            acc.all.size_rel.n
+        );
+    }
     let _ = writeln!(
         out,
-        "{:<16} {:>5} {:>4}  {:>8.4} ± {:<8.4}  {:>15}  {:>8.3} ± {:<8.3}  {:>15}  (4 objects, MobileNeRF)",
+        "{:<16} {:>5} {:>4}  {:>8.4} ± {:<8.4}  {:>15}  {:>8.3} ± {:<8.3}  {:>15}  {:>11}  (4 objects, MobileNeRF)",
         "NeRFlex paper",
         "",
         PAPER_SSIM.n,
@@ -476,6 +553,7 @@ pub fn table(acc: &Accuracy) -> String {
         "-",
         PAPER_SIZE_MB.mean,
         PAPER_SIZE_MB.sd,
+        "-",
         "-"
     );
     out
@@ -486,7 +564,13 @@ pub fn table(acc: &Accuracy) -> String {
 pub fn to_json(acc: &Accuracy) -> serde_json::Value {
     use serde_json::json;
     let stats = |s: &Stats| json!({"mean": s.mean, "sd": s.sd, "n": s.n});
-    let summary = |e: &ErrorSummary| json!({"ssim": stats(&e.ssim), "ssim_rel_spread": stats(&e.ssim_rel), "size_mb": stats(&e.size_mb), "size_rel": stats(&e.size_rel)});
+    let summary = |e: &ErrorSummary| {
+        json!({"ssim": stats(&e.ssim), "ssim_rel_spread": stats(&e.ssim_rel),
+               "size_mb": stats(&e.size_mb), "size_rel": stats(&e.size_rel),
+               "size_under_predicted": e.under,
+               "size_worst_under": e.worst_under.as_ref().map(|w| json!({
+                   "object": w.object, "g": w.g, "p": w.p, "rel": w.rel, "mb": w.mb}))})
+    };
     let training = match &acc.training {
         Training::LeaveOneOut => json!("leave-one-out"),
         Training::Subset { grids, patches } => json!({"grids": grids, "patches": patches}),
@@ -523,11 +607,17 @@ pub fn fit_table(acc: &Accuracy) -> String {
         Training::LeaveOneOut => "all samples",
         Training::Subset { .. } => "the training samples",
     };
-    let _ = writeln!(out, "Fit on {what}: RMSE per family (chosen = lower)");
+    let _ = writeln!(out, "Fit on {what}: RMSE per family (chosen = lowest)");
     let _ = writeln!(
         out,
-        "{:<16} {:>4}  {:>14} {:>14}  {:>10} {:>10}",
-        "object", "n", "size vol (MB)", "size surf (MB)", "SSIM vol", "SSIM surf"
+        "{:<16} {:>4}  {:>14} {:>14} {:>15}  {:>10} {:>10}",
+        "object",
+        "n",
+        "size vol (MB)",
+        "size surf (MB)",
+        "size quads (MB)",
+        "SSIM vol",
+        "SSIM surf"
     );
     for o in &acc.objects {
         let rmse = |f: &super::FamilyFit, fam: Family| {
@@ -541,11 +631,12 @@ pub fn fit_table(acc: &Accuracy) -> String {
         };
         let _ = writeln!(
             out,
-            "{:<16} {:>4}  {:>14} {:>14}  {:>10} {:>10}",
+            "{:<16} {:>4}  {:>14} {:>14} {:>15}  {:>10} {:>10}",
             o.fit.name,
             o.fit.samples,
             cell(rmse(&o.fit.size, Family::Volume), 1e6, 4),
             cell(rmse(&o.fit.size, Family::Surface), 1e6, 4),
+            cell(rmse(&o.fit.size, Family::Quads), 1e6, 4),
             cell(rmse(&o.fit.quality, Family::Volume), 1.0, 5),
             cell(rmse(&o.fit.quality, Family::Surface), 1.0, 5),
         );
@@ -583,6 +674,38 @@ mod tests {
         let e = ErrorSummary::of(&[flat, steep]);
         assert!((e.ssim_rel.mean - 0.26).abs() < 1e-9);
         assert_eq!(e.ssim_rel.n, 2);
+    }
+
+    #[test]
+    fn the_worst_under_prediction_is_signed() {
+        let sized = |g: u32, measured: u64, predicted: u64| LooPoint {
+            g,
+            size_measured: Bytes(measured),
+            size_predicted: Bytes(predicted),
+            ..point(0.9, 0.9, 0.1)
+        };
+        // +20 %, −10 %, −25 % (the worst), exact.
+        let pts = [
+            sized(16, 1_000_000, 1_200_000),
+            sized(32, 2_000_000, 1_800_000),
+            sized(64, 4_000_000, 3_000_000),
+            sized(128, 8_000_000, 8_000_000),
+        ];
+        let e = ErrorSummary::of(&pts);
+        let w = e.worst_under.unwrap();
+        assert_eq!(w.g, 64);
+        assert!(
+            (w.rel + 0.25).abs() < 1e-12 && (w.mb + 1.0).abs() < 1e-12,
+            "{w:?}"
+        );
+        assert_eq!(e.under, 2);
+        assert!((pts[0].size_error_signed_rel() - 0.2).abs() < 1e-12);
+        assert!((pts[1].size_error_rel() - 0.1).abs() < 1e-12);
+        // Nothing under-predicted: the smallest error is positive.
+        let over = ErrorSummary::of(&pts[..1]);
+        assert!(over.worst_under.unwrap().rel > 0.0);
+        assert_eq!(over.under, 0);
+        assert_eq!(ErrorSummary::of(&[]).worst_under, None);
     }
 
     #[test]

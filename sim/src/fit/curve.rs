@@ -1,17 +1,20 @@
 //! Fitting one curve (size or quality) of one object with
 //! Levenberg–Marquardt.
 //!
-//! - **Bounds by reparameterisation.** LM sees `θ ∈ R⁴`; the model sees
-//!   `k = e^θ₀ > 0` and `a`, `b`, `m` each `lo + (hi − lo)·σ(θᵢ)` inside its
-//!   bounds ([`Bounds`]): `a ∈ [−g_min/2, 2·g_max]`, `b ∈ [−p_min/2,
-//!   max(256 − 2·p_max, 2·p_max)]` (so `g + a ≥ g/2 > 0`: no pole over the
-//!   domain; `p + b` stays in the fixed-point range), size `m ∈ [0, min S]`
-//!   (a constant part no larger than the smallest bake), quality
+//! - **Bounds by reparameterisation.** LM sees `θ ∈ R⁴` (`R⁵` for the quads
+//!   family's size); the model sees `k = e^θ₀ > 0` and `a`, `b`, `m` (and
+//!   `c`) each `lo + (hi − lo)·σ(θᵢ)` inside its bounds ([`Bounds`]):
+//!   `a ∈ [−g_min/2, 2·g_max]`, `b ∈ [−p_min/2, max(256 − 2·p_max,
+//!   2·p_max)]` (so `g + a ≥ g/2 > 0`: no pole over the domain; `p + b`
+//!   stays in the fixed-point range), size `m ∈ [0, min S]` (a constant
+//!   part no larger than the smallest bake), the per-quad `c ∈ [0, min
+//!   S/(g/2)²]` (the per-quad term alone no larger than any bake), quality
 //!   `m ∈ [0, 1]` (an SSIM asymptote).
 //! - **Starting values.** For `(a, b)` on a small grid of starts, the model
-//!   is linear in `(k, m)` (`S = k·X + m`, `Q = m − k·(1/X)`), so `(k, m)`
-//!   come from linear least squares, clipped into bounds; LM runs from each
-//!   start and the lowest residual wins.
+//!   is linear in `(k, m)` (`S = k·X + m`, `Q = m − k·(1/X)`; the quads
+//!   family's size in `(k, c, m)`), so these come from linear least
+//!   squares, clipped into bounds; LM runs from each start and the lowest
+//!   residual wins.
 //! - **Residuals.** Quality residuals are absolute SSIM. Size residuals are
 //!   *relative* (`(fit − measured)/measured`): sizes span three to four
 //!   orders of magnitude over a sweep, absolute residuals would let the
@@ -21,8 +24,8 @@
 
 use super::FitError;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
-use nalgebra::{storage::Owned, DVector, Dyn, OMatrix, Vector4, U4};
-use nerflex_core::profiler::{Curve, Family, Params, MAX_P_BASE};
+use nalgebra::{storage::Owned, DMatrix, DVector, Dyn, OMatrix};
+use nerflex_core::profiler::{Curve, Family, Params, MAX_P_BASE, MAX_SIZE_C};
 
 /// One measured point: grid, patch, measured value (bytes or SSIM).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -80,7 +83,7 @@ impl Domain {
     }
 }
 
-/// Bounds of `a`, `b` and `m` (closed intervals).
+/// Bounds of `a`, `b`, `m` and `c` (closed intervals).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bounds {
     /// Offset added to g.
@@ -89,6 +92,8 @@ pub struct Bounds {
     pub b: (f64, f64),
     /// Constant term / asymptote.
     pub m: (f64, f64),
+    /// Per-quad scale (size of the quads family; `(0, 0)` for quality).
+    pub c: (f64, f64),
 }
 
 impl Bounds {
@@ -105,18 +110,20 @@ impl Bounds {
             -(domain.p_min as f64) / 2.0,
             (MAX_P_BASE - 2.0 * p_max).max(2.0 * p_max),
         );
-        let m = match curve {
+        let smallest = |f: fn(&Point) -> f64| points.iter().map(f).fold(f64::INFINITY, f64::min);
+        let (m, c) = match curve {
             Curve::Size => (
-                0.0,
-                points
-                    .iter()
-                    .map(|p| p.y)
-                    .fold(f64::INFINITY, f64::min)
-                    .max(0.0),
+                (0.0, smallest(|q| q.y).max(0.0)),
+                // G ≥ g/2 over the domain (the bound on a), so c·G² ≤ S at
+                // every point needs c ≤ S/(g/2)² at every point.
+                (
+                    0.0,
+                    smallest(|q| q.y / (q.g as f64 / 2.0).powi(2)).clamp(0.0, MAX_SIZE_C),
+                ),
             ),
-            Curve::Quality => (0.0, 1.0),
+            Curve::Quality => ((0.0, 1.0), (0.0, 0.0)),
         };
-        Bounds { a, b, m }
+        Bounds { a, b, m, c }
     }
 }
 
@@ -143,31 +150,61 @@ pub struct CurveFit {
     /// Model function evaluations LM used (all starts).
     pub evaluations: usize,
     /// Parameters that ended at a bound (within 0.1 % of its width):
-    /// `a`, `b`, `m` in that order.
-    pub at_bound: [bool; 3],
+    /// `a`, `b`, `m`, `c` in that order (`c` only in the quads family).
+    pub at_bound: [bool; 4],
 }
 
 /// Which family to fit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum FamilyChoice {
-    /// Fit both, keep the lower RMSE (ties go to the paper's volume form).
+    /// Fit every family the curve has, keep the lowest RMSE (ties go to the
+    /// paper's volume form): volume, surface and quads for the size,
+    /// volume and surface for the quality.
     #[default]
     Auto,
     /// Only `G³` (the paper).
     Volume,
     /// Only `G²`.
     Surface,
+    /// The size as `k·G^{3/2}·P² + c·G² + m`; the quality as `auto` (the
+    /// per-quad term is a size law's).
+    Quads,
+    /// `auto` without the quads family (volume and surface for both
+    /// curves): what `auto` was before the quads family existed.
+    Classic,
 }
 
+/// The quality model's families (the per-quad term is the size's only),
+/// and both curves' before the quads family.
+const QUALITY_FAMILIES: [Family; 2] = [Family::Volume, Family::Surface];
+
 impl FamilyChoice {
-    /// The families to try.
-    pub fn families(self) -> &'static [Family] {
-        match self {
-            FamilyChoice::Auto => &Family::ALL,
-            FamilyChoice::Volume => &[Family::Volume],
-            FamilyChoice::Surface => &[Family::Surface],
+    /// The families to try for `curve`.
+    pub fn families(self, curve: Curve) -> &'static [Family] {
+        match (self, curve) {
+            (FamilyChoice::Auto, Curve::Size) => &Family::ALL,
+            (FamilyChoice::Auto | FamilyChoice::Quads, Curve::Quality) => &QUALITY_FAMILIES,
+            (FamilyChoice::Classic, _) => &QUALITY_FAMILIES,
+            (FamilyChoice::Volume, _) => &[Family::Volume],
+            (FamilyChoice::Surface, _) => &[Family::Surface],
+            (FamilyChoice::Quads, Curve::Size) => &[Family::Quads],
         }
     }
+}
+
+/// Parameters of `family`'s model of `curve` (5 for the quads family's
+/// size: `k, a, b, m, c`; 4 otherwise).
+pub fn parameter_count(curve: Curve, family: Family) -> usize {
+    if has_c(curve, family) {
+        5
+    } else {
+        4
+    }
+}
+
+/// Whether the fit has the per-quad term `c`.
+fn has_c(curve: Curve, family: Family) -> bool {
+    curve == Curve::Size && family == Family::Quads
 }
 
 /// The fit of one curve, with the RMSE of every family tried.
@@ -186,9 +223,15 @@ pub fn fit(
     domain: Domain,
     choice: FamilyChoice,
 ) -> Result<FamilyFit, FitError> {
-    check_points(curve, points)?;
+    check_points(curve, points, 4)?;
     let mut tried = Vec::new();
-    for &family in choice.families() {
+    let families = choice.families(curve);
+    for &family in families {
+        // Under `auto`, a family with more parameters than points is left
+        // out rather than fitted exactly; asked for alone, it is an error.
+        if families.len() > 1 && points.len() < parameter_count(curve, family) {
+            continue;
+        }
         tried.push(fit_family(curve, family, points, domain)?);
     }
     let best = *tried
@@ -198,7 +241,7 @@ pub fn fit(
     Ok(FamilyFit { best, tried })
 }
 
-fn check_points(curve: Curve, points: &[Point]) -> Result<(), FitError> {
+fn check_points(curve: Curve, points: &[Point], needed: usize) -> Result<(), FitError> {
     let distinct = |f: fn(&Point) -> u32| {
         let mut v: Vec<u32> = points.iter().map(f).collect();
         v.sort_unstable();
@@ -206,9 +249,10 @@ fn check_points(curve: Curve, points: &[Point]) -> Result<(), FitError> {
         v.len()
     };
     let (gs, ps) = (distinct(|q| q.g), distinct(|q| q.p));
-    if points.len() < 4 || gs < 2 || ps < 2 {
+    if points.len() < needed || gs < 2 || ps < 2 {
         return Err(FitError::TooFewPoints {
             curve,
+            needed,
             points: points.len(),
             grids: gs,
             patches: ps,
@@ -232,7 +276,7 @@ pub fn fit_family(
     points: &[Point],
     domain: Domain,
 ) -> Result<CurveFit, FitError> {
-    check_points(curve, points)?;
+    check_points(curve, points, parameter_count(curve, family))?;
     let bounds = Bounds::new(curve, domain, points);
     let weights = weights(curve, points);
     let (g_min, p_min) = (domain.g_min as f64, domain.p_min as f64);
@@ -244,7 +288,11 @@ pub fn fit_family(
     for &a0 in &a_starts {
         for &b0 in &b_starts {
             let (a0, b0) = (clamp_inside(a0, bounds.a), clamp_inside(b0, bounds.b));
-            let start = linear_start(curve, family, points, a0, b0, bounds);
+            let start = if has_c(curve, family) {
+                quads_start(points, &weights, a0, b0, bounds)
+            } else {
+                linear_start(curve, family, points, a0, b0, bounds)
+            };
             let problem = Problem::new(curve, family, points, bounds, &weights, &start);
             let (solved, report) = solver.minimize(problem);
             evaluations += report.number_of_evaluations;
@@ -272,6 +320,7 @@ pub fn fit_family(
             near(params.a, bounds.a),
             near(params.b, bounds.b),
             near(params.m, bounds.m),
+            has_c(curve, family) && near(params.c, bounds.c),
         ],
     })
 }
@@ -346,6 +395,7 @@ fn linear_start(
         k: 1.0,
         a,
         b,
+        c: 0.0,
         m: 0.0,
         family,
     };
@@ -392,6 +442,50 @@ fn linear_start(
     }
 }
 
+/// The quads family's `(k, c, m)` by weighted (relative) linear least
+/// squares for fixed `(a, b)`, clipped into bounds.
+fn quads_start(points: &[Point], weights: &[f64], a: f64, b: f64, bounds: Bounds) -> Params {
+    let base = Params {
+        k: 1.0,
+        a,
+        b,
+        c: 0.0,
+        m: 0.0,
+        family: Family::Quads,
+    };
+    let n = points.len();
+    let mut lhs = DMatrix::<f64>::zeros(n, 3);
+    let mut rhs = DVector::<f64>::zeros(n);
+    for (i, (q, w)) in points.iter().zip(weights).enumerate() {
+        let (g, p) = (q.g as f64, q.p as f64);
+        lhs[(i, 0)] = base.volume_f64(g, p) * w;
+        lhs[(i, 1)] = base.quads_f64(g) * w;
+        lhs[(i, 2)] = *w;
+        rhs[i] = q.y * w;
+    }
+    let sol = lhs
+        .svd(true, true)
+        .solve(&rhs, 1e-12)
+        .ok()
+        .filter(|s| s.iter().all(|v| v.is_finite()));
+    let (k, c, m) = sol.map_or((0.0, 0.0, 0.0), |s| (s[0], s[1], s[2]));
+    // A wrong-signed k: start from one that explains the mean instead.
+    let k = if k > 0.0 {
+        k
+    } else {
+        let (sx, sy) = points.iter().fold((0.0, 0.0), |(sx, sy), q| {
+            (sx + base.volume_f64(q.g as f64, q.p as f64), sy + q.y)
+        });
+        (0.5 * sy / sx.max(f64::MIN_POSITIVE)).max(f64::MIN_POSITIVE)
+    };
+    Params {
+        k,
+        c: clamp_inside(c, bounds.c),
+        m: clamp_inside(m, bounds.m),
+        ..base
+    }
+}
+
 fn sigmoid(t: f64) -> f64 {
     1.0 / (1.0 + (-t).exp())
 }
@@ -401,7 +495,7 @@ fn logit(v: f64, (lo, hi): (f64, f64)) -> f64 {
     (u / (1.0 - u)).ln()
 }
 
-/// The LM problem: θ = (ln k, logit a, logit b, logit m).
+/// The LM problem: θ = (ln k, logit a, logit b, logit m[, logit c]).
 struct Problem<'p> {
     curve: Curve,
     family: Family,
@@ -409,7 +503,7 @@ struct Problem<'p> {
     bounds: Bounds,
     /// Residual weights, one per point.
     weights: &'p [f64],
-    theta: Vector4<f64>,
+    theta: DVector<f64>,
 }
 
 impl<'p> Problem<'p> {
@@ -421,19 +515,22 @@ impl<'p> Problem<'p> {
         weights: &'p [f64],
         start: &Params,
     ) -> Self {
-        let theta = Vector4::new(
+        let mut theta = vec![
             start.k.max(f64::MIN_POSITIVE).ln(),
             logit(start.a, bounds.a),
             logit(start.b, bounds.b),
             logit(start.m, bounds.m),
-        );
+        ];
+        if has_c(curve, family) {
+            theta.push(logit(start.c, bounds.c));
+        }
         Problem {
             curve,
             family,
             points,
             bounds,
             weights,
-            theta,
+            theta: DVector::from_vec(theta),
         }
     }
 
@@ -442,28 +539,36 @@ impl<'p> Problem<'p> {
         (lo + (hi - lo) * s, (hi - lo) * s * (1.0 - s))
     }
 
+    /// `c` and `dc/dθ` (0 without the per-quad term).
+    fn c(&self) -> (f64, f64) {
+        self.theta
+            .get(4)
+            .map_or((0.0, 0.0), |&t| Self::bounded(t, self.bounds.c))
+    }
+
     fn params_f64(&self) -> Params {
         Params {
             k: self.theta[0].exp(),
             a: Self::bounded(self.theta[1], self.bounds.a).0,
             b: Self::bounded(self.theta[2], self.bounds.b).0,
+            c: self.c().0,
             m: Self::bounded(self.theta[3], self.bounds.m).0,
             family: self.family,
         }
     }
 }
 
-impl LeastSquaresProblem<f64, Dyn, U4> for Problem<'_> {
+impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
     type ResidualStorage = Owned<f64, Dyn>;
-    type JacobianStorage = Owned<f64, Dyn, U4>;
-    type ParameterStorage = Owned<f64, U4>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+    type ParameterStorage = Owned<f64, Dyn>;
 
-    fn set_params(&mut self, x: &Vector4<f64>) {
+    fn set_params(&mut self, x: &DVector<f64>) {
         self.theta.copy_from(x);
     }
 
-    fn params(&self) -> Vector4<f64> {
-        self.theta
+    fn params(&self) -> DVector<f64> {
+        self.theta.clone()
     }
 
     fn residuals(&self) -> Option<DVector<f64>> {
@@ -478,30 +583,37 @@ impl LeastSquaresProblem<f64, Dyn, U4> for Problem<'_> {
         r.iter().all(|v| v.is_finite()).then_some(r)
     }
 
-    fn jacobian(&self) -> Option<OMatrix<f64, Dyn, U4>> {
+    fn jacobian(&self) -> Option<OMatrix<f64, Dyn, Dyn>> {
         let k = self.theta[0].exp();
         let (a, da) = Self::bounded(self.theta[1], self.bounds.a);
         let (b, db) = Self::bounded(self.theta[2], self.bounds.b);
         let (_, dm) = Self::bounded(self.theta[3], self.bounds.m);
-        let e = self.family.g_power() as f64;
-        let mut j = OMatrix::<f64, Dyn, U4>::zeros(self.points.len());
+        let (c, dc) = self.c();
+        let e = self.family.g_power();
+        let mut j = OMatrix::<f64, Dyn, Dyn>::zeros(self.points.len(), self.theta.len());
         for (i, (q, w)) in self.points.iter().zip(self.weights).enumerate() {
             let gg = q.g as f64 + a;
             let pp = q.p as f64 + b;
-            let x = gg.powi(self.family.g_power() as i32) * pp * pp;
+            let x = self.family.g_pow_f64(gg) * pp * pp;
             // dX/da = e·X/G, dX/db = 2·X/P.
             let (dxa, dxb) = (e * x / gg, 2.0 * x / pp);
             let row = match self.curve {
-                // S = k·X + m.
-                Curve::Size => [k * x, k * dxa * da, k * dxb * db, dm],
+                // S = k·X + c·G² + m; d(c·G²)/da = 2·c·G.
+                Curve::Size => [
+                    k * x,
+                    (k * dxa + 2.0 * c * gg) * da,
+                    k * dxb * db,
+                    dm,
+                    gg * gg * dc,
+                ],
                 // Q = m − k/X; d(−k/X)/dX = k/X².
                 Curve::Quality => {
                     let w = k / (x * x);
-                    [-k / x, w * dxa * da, w * dxb * db, dm]
+                    [-k / x, w * dxa * da, w * dxb * db, dm, 0.0]
                 }
             };
-            for (c, v) in row.iter().enumerate() {
-                j[(i, c)] = v * w;
+            for (col, v) in row.iter().take(self.theta.len()).enumerate() {
+                j[(i, col)] = v * w;
             }
         }
         j.iter().all(|v| v.is_finite()).then_some(j)
@@ -531,10 +643,12 @@ mod tests {
     fn jacobian_matches_numerical_derivative() {
         for curve in [Curve::Size, Curve::Quality] {
             for family in Family::ALL {
+                let with_c = has_c(curve, family);
                 let truth = Params {
                     k: if curve == Curve::Size { 3.0 } else { 2.0e5 },
                     a: 4.0,
                     b: 1.0,
+                    c: if with_c { 40.0 } else { 0.0 },
                     m: if curve == Curve::Size { 5.0e4 } else { 0.95 },
                     family,
                 };
@@ -545,6 +659,7 @@ mod tests {
                     k: truth.k * 1.3,
                     a: 2.0,
                     b: 0.5,
+                    c: truth.c * 0.5,
                     m: truth.m * 0.5,
                     family,
                 };
@@ -569,6 +684,7 @@ mod tests {
                 k: 2.5,
                 a: 3.0,
                 b: 1.0,
+                c: if family == Family::Quads { 300.0 } else { 0.0 },
                 m: 40_000.0,
                 family,
             };
@@ -578,10 +694,15 @@ mod tests {
             assert_eq!(f.best.params.family, family);
             let rel = f.best.residuals.rmse / 40_000.0;
             assert!(rel < 1e-6, "{family:?}: {:?}", f.best);
+            if family == Family::Quads {
+                assert!((f.best.params.c / 300.0 - 1.0).abs() < 1e-4, "{:?}", f.best);
+                continue;
+            }
             let quality = Params {
                 k: 3.0e4,
                 a: 2.0,
                 b: 0.5,
+                c: 0.0,
                 m: 0.96,
                 family,
             };

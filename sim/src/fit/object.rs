@@ -71,6 +71,7 @@ pub fn fit_object(
     let own = Domain::of_points(&size_pts).ok_or_else(|| {
         wrap(FitError::TooFewPoints {
             curve: Curve::Size,
+            needed: curve::parameter_count(Curve::Size, nerflex_core::profiler::Family::Volume),
             points: 0,
             grids: 0,
             patches: 0,

@@ -5,18 +5,20 @@
 //! {"objects": [{
 //!   "name": "lego",
 //!   "profile": {
-//!     "size":    {"k": 2.1, "a": 1.5, "b": 0.2, "m": 41000, "g_power": 2},
+//!     "size":    {"k": 60.3, "a": -7.5, "b": 4.4, "m": 0, "g_power": 1.5, "c": 1800},
 //!     "quality": {"k": 3.2e6, "a": 32, "b": 4, "m": 0.953, "g_power": 3},
 //!     "g": [16, 32, 64, 128, 256], "p": [5, 9, 13, 17]},
 //!   "fit": {"samples": 20,
 //!     "size":    {"rmse_bytes": 812.5, "max_abs_bytes": 1904.0,
-//!                 "rmse_by_family": {"volume": 5120.2, "surface": 812.5}},
+//!                 "rmse_by_family": {"volume": 5120.2, "surface": 900.1, "quads": 812.5}},
 //!     "quality": {"rmse_ssim": 0.0021, "max_abs_ssim": 0.0049,
 //!                 "rmse_by_family": {"volume": 0.0021, "surface": 0.0030}}}}]}
 //! ```
 //!
-//! `g_power` is 3 (the paper's `(g+a)³`, the default when absent) or 2
-//! (surface-like growth); `fit` is informative and ignored by the planner.
+//! `g_power` is 3 (the paper's `(g+a)³`, the default when absent), 2
+//! (surface-like growth) or 1.5 (the quads family's texel term, with the
+//! per-quad term `c·(g+a)²`; `c` is written only when not 0); `fit` is
+//! informative and ignored by the planner.
 
 use super::{FitError, ObjectFit};
 use nerflex_core::mck::MAX_CONFIGS;
@@ -33,7 +35,7 @@ pub struct Space {
 }
 
 fn params_json(p: &Params) -> Value {
-    json!({"k": p.k, "a": p.a, "b": p.b, "m": p.m, "g_power": p.family.g_power()})
+    crate::scene_file::params_json(p)
 }
 
 fn sorted_distinct(v: impl Iterator<Item = u32>) -> Vec<u32> {
