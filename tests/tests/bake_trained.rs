@@ -96,7 +96,8 @@ fn on_a_lattice_the_trained_baker_beats_the_hull_baker() {
     let mut tp = TrainedParams::new(g, p);
     tp.finetune.epochs = 20.0;
     tp.finetune.batch = 2048;
-    let tb = trained::bake(&field_of(&cap), &views, &tp).unwrap();
+    let field = field_of(&cap);
+    let tb = trained::bake(&field, &views, &tp).unwrap();
     eprintln!("{:?}", tb.stats);
     let ours = tb.baked.into_asset().unwrap();
     let measure = |a: &Asset| {
@@ -120,10 +121,31 @@ fn on_a_lattice_the_trained_baker_beats_the_hull_baker() {
         mt.mean.ssim,
         mh.mean.ssim
     );
-    // Neither baker loses coverage (IoU 0.93 both when written).
+    // Coverage: without closing neither baker loses it (IoU 0.9552 vs
+    // 0.9571). The default closing (`--surface-close 3`) is a prior for
+    // texels finer than a pixel; here, at 96 px and (48, 3), a texel is
+    // about a pixel and the lattice's gaps are real, so it closes some
+    // (IoU 0.9361, and 0.21 dB / 0.006 SSIM less: docs/baking.md,
+    // "Session 18").
     assert!(
-        it >= ih - 0.01,
+        it >= ih - 0.03,
         "coverage IoU: trained {it:.4} vs hull {ih:.4}"
+    );
+    tp.close = 0;
+    let open = trained::bake(&field, &views, &tp)
+        .unwrap()
+        .baked
+        .into_asset()
+        .unwrap();
+    let mo = measure(&open);
+    let io = coverage_iou(&mo.renders, &obj.test);
+    eprintln!(
+        "without closing: PSNR {:.2} dB, SSIM {:.4}, coverage IoU {io:.4}",
+        mo.mean.psnr, mo.mean.ssim
+    );
+    assert!(
+        io >= ih - 0.01,
+        "coverage IoU: unclosed {io:.4} vs hull {ih:.4}"
     );
     // Colour: 23.33 vs 20.49 dB with the feature lattice (22.38 dB with
     // free per-texel features, which merely held the hull's PSNR); 24.40
