@@ -462,12 +462,12 @@ pub fn bake(
     let t0 = Instant::now();
     let surface = extract::Surface::new(field, params.surface_alpha);
     let geo = extract_geometry(&surface, params).ok_or(BakeError::Empty)?;
-    // A point on an opaque object projects onto its silhouette in every
-    // view: texels that some training view shows as background go.
     let mut geo = geo;
     // Pinholes and slivers in the planes' texel opacity close first; the
     // hull carve then empties what that put outside a silhouette.
     let closed_texels = close::close(&mut geo.opacity, p, params.close);
+    // A point on an opaque object projects onto its silhouette in every
+    // view: texels that some training view shows as background go.
     if params.hull_carve {
         let sil = super::carve::Silhouettes::new(views).with_margin(params.hull_margin);
         let hull = super::carve::texel_occupancy_hull(&sil, &geo.quads, p);
