@@ -5,6 +5,7 @@
 #   results/bake/trained/samples-mesh.csv       the same sweep with `--surface mesh` (session 15)
 #   results/bake/trained/samples-eval-paper.csv the paper-scale evaluation's profiler samples
 #                                               (Scenes 1–4 + real, 9 per network, from results/eval/eval.json)
+#                                               (written by results/bake/trained/samples-eval-paper.py)
 # Usage: results/profile/trained/make.sh [path/to/nerflex]
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
