@@ -92,7 +92,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         s.push('\n');
         s
     } else {
-        table(&plan, budget, margin)
+        let mut t = String::new();
+        if margin > 0.0 {
+            let _ = writeln!(
+                t,
+                "size margin {margin} %: planned against {:.2} of {:.2} MB",
+                total.as_mb(),
+                whole.as_mb()
+            );
+        }
+        t.push_str(&table(&plan, budget));
+        t
     };
     std::io::stdout()
         .lock()
@@ -128,22 +138,15 @@ pub fn json(plan: &Plan) -> anyhow::Result<serde_json::Value> {
 }
 
 /// The plan as a human-readable table.
-/// `margin_pct` is the size margin the budget was already reduced by.
-pub fn table(plan: &Plan, budget: Budget, margin_pct: f64) -> String {
+pub fn table(plan: &Plan, budget: Budget) -> String {
     let mut s = String::new();
     let device = plan.device.as_deref().unwrap_or("-");
-    let margin = if margin_pct > 0.0 {
-        format!(" (after a {margin_pct} % size margin)")
-    } else {
-        String::new()
-    };
     let _ = writeln!(
         s,
-        "{} plan on {}: budget {:.2} MB{}, planned in units of {} bytes ({} units)",
+        "{} plan on {}: budget {:.2} MB, planned in units of {} bytes ({} units)",
         plan.method,
         device,
         budget.total.as_mb(),
-        margin,
         budget.unit.0,
         budget.units()
     );
