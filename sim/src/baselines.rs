@@ -128,6 +128,24 @@ pub struct Budget {
 }
 
 impl Budget {
+    /// What a plan is made against when its sizes may be under-predicted
+    /// by up to `margin_pct` % (`(predicted − measured)/measured ≥
+    /// −margin`): a plan predicted within `total × (1 − margin)` then
+    /// measures at most `total`. Rounded down to the byte; `None` unless
+    /// `margin_pct` is in `[0, 100)`.
+    pub fn less_size_margin(total: Bytes, margin_pct: f64) -> Option<Bytes> {
+        if !margin_pct.is_finite() || !(0.0..100.0).contains(&margin_pct) {
+            return None;
+        }
+        if margin_pct == 0.0 {
+            return Some(total);
+        }
+        // The float product is at most `total` up to rounding; the cast
+        // saturates and the `min` keeps the result within `total`.
+        let kept = (total.0 as f64 * (1.0 - margin_pct / 100.0)).floor();
+        Some(Bytes((kept as u64).min(total.0)))
+    }
+
     /// The default unit, 0.1 MB: our choice for the paper's budgets (the
     /// paper states 240 and 150 MB, not the unit its DP counts in).
     pub const PAPER_UNIT: Bytes = Bytes(100_000);

@@ -45,18 +45,11 @@ pub struct Args {
     pub json: bool,
 }
 
-/// The budget a plan is made against when sizes may be under-predicted by
-/// up to `margin_pct` % (`(predicted − measured)/measured ≥ −margin`): a
-/// plan predicted within `total × (1 − margin)` then measures at most
-/// `total`. Rounded down to the byte.
+/// [`Budget::less_size_margin`], with an error naming the flag.
 pub fn planning_budget(total: Bytes, margin_pct: f64) -> anyhow::Result<Bytes> {
-    if !margin_pct.is_finite() || !(0.0..100.0).contains(&margin_pct) {
-        bail!("--size-margin: must be a percentage from 0 up to (not including) 100, got {margin_pct}");
-    }
-    // f64 holds every byte count up to 2^53 exactly; the product is below
-    // `total`, so the cast back cannot overflow.
-    let kept = (total.0 as f64 * (1.0 - margin_pct / 100.0)).floor();
-    Ok(Bytes((kept as u64).min(total.0)))
+    Budget::less_size_margin(total, margin_pct).with_context(|| {
+        format!("--size-margin: must be a percentage from 0 up to (not including) 100, got {margin_pct}")
+    })
 }
 
 /// Runs `nerflex plan`.
