@@ -11,7 +11,9 @@ use std::path::{Path, PathBuf};
 use image::RgbaImage;
 use nerflex_sim::asset::Asset;
 use nerflex_sim::bake::sweep::{self, ObjectViews};
-use nerflex_sim::bake::trained::{self, analytic::Builtin, export, TrainedParams};
+use nerflex_sim::bake::trained::{
+    self, analytic::Builtin, export, sampling::FinetuneSampling, TrainedParams,
+};
 use nerflex_sim::bake::{self, BakeParams};
 use nerflex_sim::capture::Capture;
 use nerflex_sim::procedural::{
@@ -62,7 +64,11 @@ fn ball(dir: &Path) -> (ObjectViews, Builtin) {
 fn ball_params(supersample: bool) -> TrainedParams {
     let mut tp = TrainedParams::new(16, 5);
     tp.visibility.rounds = 0;
-    tp.supersample = supersample;
+    tp.sampling = if supersample {
+        FinetuneSampling::Supersampled
+    } else {
+        FinetuneSampling::OnePerPixel
+    };
     tp.finetune.epochs = 10.0;
     tp.finetune.batch = 1024;
     tp

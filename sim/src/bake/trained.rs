@@ -36,6 +36,7 @@ pub mod gbuffer;
 pub mod init;
 pub mod net;
 pub mod nets;
+pub mod sampling;
 pub mod visibility;
 
 use glam::Vec3;
@@ -54,8 +55,10 @@ pub const MAX_DEPTH_CARVE_ROUNDS: u32 = 8;
 
 /// Version of the trained baker: part of sweep cache keys (3: session 16's
 /// visibility rounds and their fixed-point judgement; 4: session 18's
-/// closing of the planes' texel opacity).
-pub const TRAINED_BAKER_VERSION: u32 = 4;
+/// closing of the planes' texel opacity; 5: session 20's fine-tune through
+/// the renderer's supersampling where a voxel spans fewer than 4 pixels,
+/// [`sampling`]).
+pub const TRAINED_BAKER_VERSION: u32 = 5;
 
 /// The geometry a bake extracts from the field.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -159,14 +162,14 @@ pub struct TrainedParams {
     pub depth_carve_rounds: u32,
     /// The depth carve's slack, voxels.
     pub depth_carve_margin: f32,
-    /// Train through the renderer's 2 × 2 supersampling
+    /// Whether to train through the renderer's 2 × 2 supersampling
     /// (`render::RenderOptions::supersample`, the default render): each
     /// training pixel shows up to four texels whose mean features the MLP
-    /// reads, and partly covered pixels blend with white. Off by default:
-    /// on lego (128, 17) it bought +0.14 dB over training at one sample per
-    /// pixel (both rendered supersampled) for 1.6× the bake time
-    /// (`docs/baking.md`, "Session 6").
-    pub supersample: bool,
+    /// reads, and partly covered pixels blend with white. By default only
+    /// where a voxel spans fewer than [`sampling::SUPERSAMPLE_BELOW_PX`]
+    /// pixels: above, it buys little for 1.6–2× the bake time
+    /// (`docs/baking.md`, "Session 20").
+    pub sampling: sampling::FinetuneSampling,
     /// Cells per edge of the feature lattice over the object's cube
     /// (independent of g and p: the continuous appearance the texels
     /// sample); 0: [`auto_feature_res`].
@@ -194,7 +197,7 @@ impl TrainedParams {
             depth_correct: false,
             depth_carve_rounds: 0,
             depth_carve_margin: 1.0,
-            supersample: false,
+            sampling: sampling::FinetuneSampling::Auto,
             close: GeometryKind::Planes.default_close(),
             hull_carve: true,
             hull_margin: 1,
@@ -365,6 +368,11 @@ pub struct TrainedStats {
     pub reached_vertices: u64,
     /// Training pixels the geometry covers.
     pub train_pixels: u64,
+    /// The voxel's edge in pixels as the training views see it (median;
+    /// 0 when no view sees the cube).
+    pub voxel_px: f32,
+    /// Whether the fine-tune trained through the 2 × 2 supersampling.
+    pub supersampled: bool,
     /// Covered training pixels that show a quad from behind (a geometry
     /// measure: 1–2 % on lego's mesh, 17–20 % on its planes;
     /// `docs/baking.md`, "Session 14").
@@ -397,21 +405,10 @@ pub struct TrainedBake {
 /// 512 within 0.1 dB (docs/baking.md, "Session 5"), and a 96 px capture
 /// gets a lattice its pixels can train.
 pub fn auto_feature_res(cube: &super::Aabb, views: &[BakeView<'_>]) -> u32 {
-    let centre = 0.5 * (cube.min + cube.max);
-    let edge = (cube.max - cube.min).max_element();
-    let mut px: Vec<f32> = views
-        .iter()
-        .filter_map(|v| {
-            let depth = (centre - v.camera.position()).length();
-            (depth > 1e-6).then(|| edge * v.camera.intrinsics.fx / depth)
-        })
-        .collect();
-    if px.is_empty() {
-        return 256;
+    match sampling::cube_px(cube, views) {
+        Some(px) => ((px / 2.0).round() as u32).clamp(4, 512),
+        None => 256,
     }
-    let mid = px.len() / 2;
-    let (_, m, _) = px.select_nth_unstable_by(mid, f32::total_cmp);
-    ((*m / 2.0).round() as u32).clamp(4, 512)
 }
 
 /// The quads of `geo` some pixel of `gb` shows, their opacity, and each
@@ -463,6 +460,8 @@ pub fn bake(
     let surface = extract::Surface::new(field, params.surface_alpha);
     let geo = extract_geometry(&surface, params).ok_or(BakeError::Empty)?;
     let mut geo = geo;
+    let voxel_px = sampling::voxel_px(&geo.cube, views, g);
+    let supersample = params.sampling.supersampled(voxel_px);
     // Pinholes and slivers in the planes' texel opacity close first; the
     // hull carve then empties what that put outside a silhouette.
     let closed_texels = close::close(&mut geo.opacity, p, params.close);
@@ -492,12 +491,12 @@ pub fn bake(
     let mut layers: Option<visibility::Peel> = None;
     let gb = loop {
         let gb = if peel_first {
-            let peeled = visibility::peel(&geo, p, views, params.supersample)?;
-            let (gb, _) = peeled.gbuffers(&geo.opacity, params.supersample);
+            let peeled = visibility::peel(&geo, p, views, supersample)?;
+            let (gb, _) = peeled.gbuffers(&geo.opacity, supersample);
             layers = Some(peeled);
             gb
         } else {
-            gbuffer::of_geometry(&geo, p, views, params.supersample)?
+            gbuffer::of_geometry(&geo, p, views, supersample)?
         };
         round += 1;
         if round > params.carve_rounds {
@@ -536,13 +535,13 @@ pub fn bake(
             break;
         }
         drop(gb);
-        gb = gbuffer::of_geometry(&geo, p, views, params.supersample)?;
+        gb = gbuffer::of_geometry(&geo, p, views, supersample)?;
     }
     // Onto the depth the field's renders show, then look once more.
     let (gb, depth_report) = if params.depth_correct {
         let r = depth::correct(field, &mut geo.quads, p, geo.voxel, &gb, views);
         drop(gb);
-        (gbuffer::of_geometry(&geo, p, views, params.supersample)?, r)
+        (gbuffer::of_geometry(&geo, p, views, supersample)?, r)
     } else {
         (gb, depth::DepthReport::default())
     };
@@ -686,7 +685,7 @@ pub fn bake(
                 unkept = pe.renumber(&new_index, p2);
                 pe
             }
-            None => visibility::peel(&geo, p, views, params.supersample)?,
+            None => visibility::peel(&geo, p, views, supersample)?,
         };
         drop(new_index);
         let v1 = Instant::now();
@@ -696,14 +695,24 @@ pub fn bake(
             &peeled.pixels,
             grid,
             &mlp,
-            params.supersample,
+            supersample,
             &params.visibility,
         );
-        // The next G-buffers from the two layers: no third pass.
-        let (next, lost) = peeled.gbuffers(&geo.opacity, params.supersample);
+        // The next G-buffers from the two layers: no third pass. Under
+        // supersampling the views are rasterized anew instead: there a
+        // subsample whose two layers both went is common where p is small
+        // (lego (256, 5): 3.9 % of them), and the fine-tune on layers
+        // that read it as uncovered lost 1.3 dB (docs/baking.md, "Session
+        // 20"); at one sample per pixel a new pass changes nothing.
+        let (next, lost) = peeled.gbuffers(&geo.opacity, supersample);
         let tiles = peeled.tiles;
         drop(peeled);
-        gb = next;
+        gb = if supersample {
+            drop(next);
+            gbuffer::of_geometry(&geo, p, views, supersample)?
+        } else {
+            next
+        };
         visibility = visibility::VisibilityReport {
             pixels: r.pixels,
             shown_texels: r.shown_texels,
@@ -771,6 +780,8 @@ pub fn bake(
         lattice_vertices: grid.len() as u64,
         reached_vertices: reached as u64,
         train_pixels: pixels.len() as u64,
+        voxel_px: voxel_px.unwrap_or(0.0),
+        supersampled: supersample,
         backface_pixels,
         fit_mse,
         finetune: report,

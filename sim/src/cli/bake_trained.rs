@@ -5,7 +5,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context as _};
 
-use crate::bake::trained::{self, analytic::Builtin, GeometryKind, TrainedParams};
+use crate::bake::trained::{
+    self, analytic::Builtin, sampling::FinetuneSampling, GeometryKind, TrainedParams,
+};
 use crate::bake::{BakeView, BakedObject};
 use crate::capture::SceneInfo;
 use crate::train::field::RadianceField;
@@ -99,10 +101,16 @@ pub struct TrainedArgs {
     #[arg(long)]
     pub depth_correct: bool,
     /// Fine-tune through the renderer's 2 × 2 supersampling (up to four
-    /// texels per training pixel; +0.14 dB on lego for 1.6× the bake time,
-    /// docs/baking.md) instead of one sample per pixel.
-    #[arg(long)]
+    /// texels per training pixel) at any g. Default: only where a voxel
+    /// spans fewer than 4 pixels of the training views (chair (256, 17)
+    /// +0.0025 SSIM, lego +0.0035; at g = 128 little for twice the bake
+    /// time; docs/baking.md, "Session 20").
+    #[arg(long, conflicts_with = "no_train_supersample")]
     pub train_supersample: bool,
+    /// Fine-tune at one sample per pixel at any g (see
+    /// `--train-supersample`).
+    #[arg(long)]
+    pub no_train_supersample: bool,
     /// Rounds of dropping quads the training views show mostly against the
     /// background (one G-buffer pass each; the hull carve leaves little).
     #[arg(long, default_value_t = 0)]
@@ -165,7 +173,11 @@ impl TrainedArgs {
         p.surface_alpha = self.surface_alpha;
         p.feature_res = self.feature_res;
         p.depth_correct = self.depth_correct;
-        p.supersample = self.train_supersample;
+        p.sampling = match (self.train_supersample, self.no_train_supersample) {
+            (true, _) => FinetuneSampling::Supersampled,
+            (_, true) => FinetuneSampling::OnePerPixel,
+            _ => FinetuneSampling::Auto,
+        };
         p.carve_rounds = self.carve_rounds;
         p.hull_carve = !self.no_hull_carve;
         p.close = self
@@ -289,6 +301,15 @@ pub fn bake(
     println!(
         "trained: {} covered training pixels show a quad from behind",
         s.backface_pixels
+    );
+    println!(
+        "trained: a voxel spans {:.1} px of the training views: fine-tune at {}",
+        s.voxel_px,
+        if s.supersampled {
+            "2 × 2 samples per pixel"
+        } else {
+            "one sample per pixel"
+        }
     );
     if args.depth_carve > 0 {
         println!(

@@ -94,6 +94,18 @@ impl Baker {
     }
 }
 
+/// A store entry's sample and (if stored) per-view scores; `None` when
+/// the entry has no readable sample.
+fn read_entry(dir: &Path) -> Option<(Sample, Option<HeldOutScores>)> {
+    let sample = std::fs::read_to_string(dir.join(SAMPLE_FILE))
+        .ok()
+        .and_then(|t| serde_json::from_str::<Sample>(&t).ok())?;
+    let views = std::fs::read_to_string(dir.join(VIEWS_FILE))
+        .ok()
+        .and_then(|t| serde_json::from_str::<HeldOutScores>(&t).ok());
+    Some((sample, views))
+}
+
 /// A finished bake.
 #[derive(Clone, Debug)]
 pub struct Baked {
@@ -265,13 +277,32 @@ impl BakeStore {
         }
         let mut results: Vec<Option<anyhow::Result<Baked>>> =
             (0..reqs.len()).map(|_| None).collect();
+        // A repeated request is baked once: two workers baking one key at
+        // once would race to put the same store entry in place.
+        let dirs: Vec<PathBuf> = reqs
+            .iter()
+            .map(|r| self.entry_dir(r, lpips.is_some()))
+            .collect();
+        let first_of: Vec<usize> = (0..reqs.len())
+            .map(|i| dirs.iter().position(|d| *d == dirs[i]).unwrap_or(i))
+            .collect();
+        let unique: Vec<usize> = (0..reqs.len()).filter(|&i| first_of[i] == i).collect();
         match self.baker {
             Baker::Hull => {
-                let all: Vec<usize> = (0..reqs.len()).collect();
-                self.bake_group(reqs, &all, self.jobs, lpips, progress, label, &mut results);
+                self.bake_group(
+                    reqs,
+                    &unique,
+                    self.jobs,
+                    lpips,
+                    progress,
+                    label,
+                    &mut results,
+                );
             }
             Baker::Trained(ref t) => {
-                let missing: Vec<usize> = (0..reqs.len())
+                let missing: Vec<usize> = unique
+                    .iter()
+                    .copied()
                     .filter(|&i| !self.is_stored(&reqs[i], lpips.is_some()))
                     .collect();
                 let jobs = if missing.len() > 1 { self.jobs } else { 1 };
@@ -297,8 +328,7 @@ impl BakeStore {
                         }
                     }
                 }
-                let all: Vec<usize> = (0..reqs.len()).collect();
-                self.bake_group(reqs, &all, jobs, lpips, progress, label, &mut results);
+                self.bake_group(reqs, &unique, jobs, lpips, progress, label, &mut results);
                 // A field's training belongs to its network's first missing
                 // bake, as it would one at a time.
                 for (i, train_s) in trained {
@@ -307,6 +337,26 @@ impl BakeStore {
                         b.field_trained = true;
                     }
                 }
+            }
+        }
+        // Repeats take their first request's bake, as found in the store.
+        for i in 0..reqs.len() {
+            let f = first_of[i];
+            if f != i {
+                results[i] = Some(match &results[f] {
+                    Some(Ok(b)) => Ok(Baked {
+                        seconds: 0.0,
+                        cached: true,
+                        train_s: 0.0,
+                        field_trained: false,
+                        ..b.clone()
+                    }),
+                    _ => Err(anyhow::anyhow!(
+                        "bake {} of the batch is bake {}'s, which did not finish",
+                        i + 1,
+                        f + 1
+                    )),
+                });
             }
         }
         // The first failure in request order, not a bake it kept from running.
@@ -584,14 +634,7 @@ impl BakeStore {
         }
         let (obj, g, p) = (r.views, r.g, r.p);
         let dir = self.entry_dir(r, lpips.is_some());
-        let sample_path = dir.join(SAMPLE_FILE);
-        if let Some(sample) = std::fs::read_to_string(&sample_path)
-            .ok()
-            .and_then(|t| serde_json::from_str::<Sample>(&t).ok())
-        {
-            let views = std::fs::read_to_string(dir.join(VIEWS_FILE))
-                .ok()
-                .and_then(|t| serde_json::from_str::<HeldOutScores>(&t).ok());
+        if let Some((sample, views)) = read_entry(&dir) {
             return Ok(Baked {
                 sample,
                 dir: dir.join("asset"),
@@ -692,10 +735,19 @@ impl BakeStore {
             std::fs::write(tmp.join("bake.json"), serde_json::to_string_pretty(&d)?)
                 .with_context(|| format!("{}: cannot write", tmp.display()))?;
         }
-        stage.commit(
+        let committed = stage.commit(
             &|n| n == "asset" || n == SAMPLE_FILE || n == "bake.json" || n == VIEWS_FILE,
             "a bake store entry holds only asset/, sample.json, views.json and bake.json",
-        )?;
+        );
+        if let Err(e) = committed {
+            // Another writer of the same key (a repeated request baking
+            // beside this one, or another run) got there first: bakes are
+            // deterministic, so its entry is this bake; ours is dropped.
+            return match read_entry(dir) {
+                Some((sample, Some(views))) => Ok((sample, views)),
+                _ => Err(e.into()),
+            };
+        }
         Ok((sample, views))
     }
 }
