@@ -775,6 +775,8 @@ fn trained_details(
         "lattice_vertices": s.lattice_vertices,
         "reached_vertices": s.reached_vertices,
         "train_pixels": s.train_pixels,
+        "voxel_px": s.voxel_px,
+        "supersampled": s.supersampled,
         "fit_mse": s.fit_mse,
         "finetune": {
             "steps": s.finetune.steps,
