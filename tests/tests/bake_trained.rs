@@ -105,6 +105,13 @@ fn on_a_lattice_the_trained_baker_beats_the_hull_baker() {
     let field = field_of(&cap);
     let tb = trained::bake(&field, &views, &tp).unwrap();
     eprintln!("{:?}", tb.stats);
+    // By default the fine-tune supersamples exactly where a voxel spans
+    // fewer than 4 of the training views' pixels.
+    assert!(tb.stats.voxel_px > 0.0, "{}", tb.stats.voxel_px);
+    assert_eq!(
+        tb.stats.supersampled,
+        tb.stats.voxel_px < trained::sampling::SUPERSAMPLE_BELOW_PX
+    );
     let ours = tb.baked.into_asset().unwrap();
     let measure = |a: &Asset| {
         sweep::measure_views(a, &obj.test, &sweep::fixed_point_render, None, true).unwrap()
