@@ -7,18 +7,20 @@
 # measured file bytes of the same configurations
 # (results/bake/trained/samples*.csv), as a share of the budget.
 # Usage: results/profile/session19/budget_margin.sh [path/to/nerflex] > results/profile/session19/budget_margin.txt
+# (GEOS and MARGINS, space-separated, replace the geometries and margins:
+# results/profile/session20/budget_margin.sh sets them.)
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 N=${1:-target/release/nerflex}
 echo "geometry margin  budget  planned-against MB  predicted MB  measured MB  measured − budget  predicted SSIM  plan (object(g,p))"
-for geo in planes mesh; do
+for geo in ${GEOS:-planes mesh}; do
     S=results/bake/trained/samples.csv
     P=results/profile/trained/profiles.json
     if [ $geo = mesh ]; then
         S=results/bake/trained/samples-mesh.csv
         P=results/profile/trained/mesh/profiles.json
     fi
-    for margin in 0 11.3; do
+    for margin in ${MARGINS:-0 11.3}; do
         for b in 50 100 150 200 300 400 600; do
             "$N" plan --scene $P --device iphone13 --budget-mb $b --size-margin $margin --json |
                 jq -r '(.budget_bytes | tostring) as $pb | (.total_quality | tostring) as $q
