@@ -167,8 +167,9 @@ pub struct TrainedParams {
     /// training pixel shows up to four texels whose mean features the MLP
     /// reads, and partly covered pixels blend with white. By default only
     /// where a voxel spans fewer than [`sampling::SUPERSAMPLE_BELOW_PX`]
-    /// pixels: above, it buys little for 1.6–2× the bake time
-    /// (`docs/baking.md`, "Session 20").
+    /// pixels (where one sample per pixel loses most); above, it gains
+    /// about 0.25 dB for 1.5–2× the bake time, which the 60 s bake at
+    /// g = 128 cannot pay (`docs/baking.md`, "Session 20").
     pub sampling: sampling::FinetuneSampling,
     /// Cells per edge of the feature lattice over the object's cube
     /// (independent of g and p: the continuous appearance the texels

@@ -103,8 +103,8 @@ pub struct TrainedArgs {
     /// Fine-tune through the renderer's 2 × 2 supersampling (up to four
     /// texels per training pixel) at any g. Default: only where a voxel
     /// spans fewer than 4 pixels of the training views (chair (256, 17)
-    /// +0.0025 SSIM, lego +0.0035; at g = 128 little for twice the bake
-    /// time; docs/baking.md, "Session 20").
+    /// +0.0028 SSIM, lego +0.0038). At g = 128 it gains +0.25 dB on lego
+    /// and chair for twice the bake time (docs/baking.md, "Session 20").
     #[arg(long, conflicts_with = "no_train_supersample")]
     pub train_supersample: bool,
     /// Fine-tune at one sample per pixel at any g (see

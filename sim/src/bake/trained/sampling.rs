@@ -2,22 +2,24 @@
 //! renderer's 2 × 2 (every covered subsample's texel, their mean features
 //! through the MLP, partly covered pixels blended with white).
 //!
-//! The renderer always supersamples. While a voxel spans several pixels the
-//! four subsamples of a pixel almost always land on one quad, and training
-//! at one sample per pixel is as good and 1.6–2× cheaper. Once a voxel
-//! spans fewer than [`SUPERSAMPLE_BELOW_PX`] pixels, a pixel's subsamples
-//! often fall on different quads: one sample per pixel then trains
-//! features the renderer never shows alone, and drops quads only
-//! subsamples show (holes). Chair (256, 17) scored below (128, 17) for
-//! that reason (`docs/baking.md`, "Session 20").
+//! The renderer always supersamples. Training as it renders gains at any
+//! g (lego and chair (128, 17): +0.25 dB) but costs 1.5–2× the bake time,
+//! and the 60 s bake is at g = 128. The loss from one sample per
+//! pixel grows as voxels shrink: once a voxel spans fewer than
+//! [`SUPERSAMPLE_BELOW_PX`] pixels, a pixel's subsamples often fall on
+//! different quads, so one sample per pixel trains features the renderer
+//! never shows alone and drops quads only subsamples show (holes). Chair
+//! (256, 17) scored below (128, 17) for that reason (`docs/baking.md`,
+//! "Session 20"). So the default supersamples there, where the bake is
+//! past the 60 s anyway.
 
 use super::super::{Aabb, BakeView};
 
 /// A voxel narrower than this (pixels, as the training views see it)
 /// makes [`FinetuneSampling::Auto`] supersample. Chair's voxel is 4.5 px
-/// at g = 128 (supersampling: +0.0003 SSIM, 1.9× the bake time) and 3.0 px
-/// at g = 192 (+0.0026 SSIM, +0.27 dB); lego's 5.1 px and 2.6 px at 128 and
-/// 256 (`docs/baking.md`, "Session 20").
+/// at g = 128 (supersampling: +0.25 dB, 90 s against 42 s) and 3.0 px at
+/// g = 192 (one sample per pixel already below g = 128); lego's 5.1 px and
+/// 2.6 px at 128 and 256 (`docs/baking.md`, "Session 20").
 pub const SUPERSAMPLE_BELOW_PX: f32 = 4.0;
 
 /// The fine-tune's samples per training pixel.
