@@ -704,7 +704,10 @@ pub fn bake(
         // subsample whose two layers both went is common where p is small
         // (lego (256, 5): 3.9 % of them), and the fine-tune on layers
         // that read it as uncovered lost 1.3 dB (docs/baking.md, "Session
-        // 20"); at one sample per pixel a new pass changes nothing.
+        // 20"); at one sample per pixel a new pass changes nothing. (The
+        // layers' buffers are still built there for their lost count, the
+        // report's measure of it: one linear pass, small beside a new
+        // rasterization.)
         let (next, lost) = peeled.gbuffers(&geo.opacity, supersample);
         let tiles = peeled.tiles;
         drop(peeled);

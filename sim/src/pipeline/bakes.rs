@@ -357,6 +357,8 @@ impl BakeStore {
                         f + 1
                     )),
                 });
+                // One step per request, as callers size their bars.
+                progress.step(&label(i));
             }
         }
         // The first failure in request order, not a bake it kept from running.
