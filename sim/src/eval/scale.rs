@@ -88,15 +88,18 @@ impl Scale {
         // Measured choices and the reasons: docs/evaluation.md, "Training
         // budgets".
         let (levels, batch) = match self {
-            // Not measured at this size (no 800-pixel training was run for
-            // this choice): one 128³ level sized so that about 48 fields
-            // take about half an hour (docs/evaluation.md).
+            // One 128³ level of 800 steps at 8192 rays (session 21): the
+            // 400 × 4096 of session 7 held spring's network out at 24.1 dB
+            // with haze between its coils, and its bakes fell from g = 32
+            // to 64; 4× the rays lifted the fields by 1.4–2.6 dB and,
+            // with two fine-tune epochs, the bakes rise with g
+            // (docs/evaluation.md, "Session 21").
             Scale::Paper => (
                 vec![Level {
                     res: 128,
-                    iters: 400,
+                    iters: 800,
                 }],
-                4096,
+                8192,
             ),
             // 16 views of an enlarged network at 128–160 px: one 48³
             // level held out as well as 64³ → 96³ at a third of the time.
@@ -122,9 +125,13 @@ impl Scale {
     pub fn bake_settings(self) -> TrainedParams {
         let mut p = TrainedParams::new(DEFAULT_GRID, DEFAULT_PATCH);
         p.finetune.epochs = match self {
-            // 50 views × 800² pixels: one pass is ≈ 8 M pixel steps per
-            // network (≈ 30 s), so half a pass.
-            Scale::Paper => 0.5,
+            // 50 views × 800² pixels: one pass is ≈ 8–10 M pixel steps
+            // per network, ≈ 7 s since the fine-tune got faster (≈ 30 s
+            // when half a pass was chosen). Half a pass left the texels
+            // under-trained, most where g is larger (more texels, fewer
+            // pixels each), so bakes fell with g; two passes gain
+            // 0.01–0.03 SSIM and rise (docs/evaluation.md, "Session 21").
+            Scale::Paper => 2.0,
             Scale::Quick | Scale::Reduced => 3.0,
         };
         p

@@ -14,6 +14,7 @@
 
 use glam::Vec3;
 
+use super::adam::prefetch;
 use super::grid::{activate_density, sigmoid, Corners, SparseGrid};
 use super::sh;
 
@@ -207,6 +208,14 @@ fn render_ray_k<const S: usize, const K: usize>(
     forward::<S, K>(grid, bx, ray, p, |_| {})
 }
 
+/// Samples ahead of the current one whose cell (occupancy word and
+/// lattice-index rows) the forward march prefetches.
+const CELL_AHEAD: u32 = 4;
+/// Samples ahead whose corner records it prefetches.
+const RECORD_AHEAD: u32 = 2;
+/// Samples ahead whose gradient records the backward pass prefetches.
+const GRAD_AHEAD: usize = 2;
+
 /// The forward march shared by rendering and training: composites the
 /// ray and hands every shaded sample to `keep` (a no-op when rendering).
 #[inline(always)]
@@ -233,6 +242,11 @@ fn forward<const S: usize, const K: usize>(
     while t < t1 {
         let at = t;
         let u = ray.origin + t * ray.dir;
+        // Memory, not arithmetic, bounds the march on a large grid: ask
+        // for the index rows `CELL_AHEAD` samples ahead and, their slots
+        // in cache by then, for the records `RECORD_AHEAD` ahead.
+        grid.prefetch_cell(u + (CELL_AHEAD as f32 * p.step) * ray.dir);
+        grid.prefetch_records::<S>(u + (RECORD_AHEAD as f32 * p.step) * ray.dir);
         t += p.step;
         let Some(corners) = grid.corners(u) else {
             continue;
@@ -295,6 +309,16 @@ impl GradBuf {
             g.fill(0.0);
         }
         Some(g)
+    }
+
+    /// Asks for the gradient records and touched flags of `corners`.
+    #[inline(always)]
+    fn prefetch<const S: usize>(&self, corners: &Corners) {
+        for &s in &corners.slot {
+            let s = s as usize;
+            prefetch(self.grad.get(s * S..s * S + S));
+            prefetch(self.mark.get(s..s + 1));
+        }
     }
 
     #[inline(always)]
@@ -435,6 +459,9 @@ fn train_ray_k<const S: usize, const K: usize>(
     let mut g_w_upto = 0.0f32; // Σ_{i≤k} gᵢwᵢ
     let mut before = Vec3::ZERO; // Σ_{j≤i} wⱼ cⱼ
     for (k, s) in scratch.samples.iter().enumerate() {
+        if let Some(ahead) = scratch.samples.get(k + GRAD_AHEAD) {
+            grads.prefetch::<S>(&ahead.corners);
+        }
         let rgb = Vec3::from_array(s.rgb);
         before += s.w * rgb;
         let d_tau_dist = if dist_on {
