@@ -320,8 +320,13 @@ fn evaluate_scene(
                 // device's budget, plan again against less (see next_budget).
                 let over = match (devs.as_slice(), measured.get(idx)) {
                     ([d], Some((_, _, r, _))) if is_planner(method) && replans < MAX_REPLANS => {
-                        next_budget(d.budget(), Bytes(plan.budget_bytes), Bytes(r.file_bytes()))
-                            .map(|b| (*d, b))
+                        next_budget(
+                            d.budget(),
+                            Bytes(plan.budget_bytes),
+                            Bytes(r.file_bytes()),
+                            replans,
+                        )
+                        .map(|b| (*d, b))
                     }
                     _ => None,
                 };

@@ -35,7 +35,7 @@ pub struct Args {
     #[arg(long)]
     pub renders: Option<PathBuf>,
     /// Coarse-to-fine schedule, `RES:STEPS` comma-separated.
-    #[arg(long, value_delimiter = ',', value_parser = parse_level, default_value = "128:1000,256:2000,384:3000")]
+    #[arg(long, value_delimiter = ',', value_parser = parse_level, default_value = "128:1000,256:2000,384:4500")]
     pub levels: Vec<Level>,
     /// Rays per optimisation step.
     #[arg(long, default_value_t = 8192)]

@@ -116,6 +116,7 @@ pub fn run_one(
             device.budget(),
             Bytes(plan.budget_bytes),
             Bytes(realised.file_bytes()),
+            replans,
         ) else {
             break;
         };
