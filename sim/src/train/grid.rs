@@ -262,14 +262,10 @@ impl SparseGrid {
         }
     }
 
-    /// Asks for the records of the corners at `u` (reading their slots
-    /// from the index, which [`Self::prefetch_cell`] should have brought
-    /// in), for a record length known at compile time.
+    /// Asks for the records of `corners`, for a record length known at
+    /// compile time.
     #[inline(always)]
-    pub fn prefetch_records<const S: usize>(&self, u: Vec3) {
-        let Some(corners) = self.corners(u) else {
-            return;
-        };
+    pub fn prefetch_records<const S: usize>(&self, corners: &Corners) {
         for &s in &corners.slot {
             if s != EMPTY {
                 let at = s as usize * S;

@@ -236,19 +236,39 @@ fn forward<const S: usize, const K: usize>(
     };
     let basis = basis_of::<K>(grid.sh_degree, ray.dir);
     let tau_scale = grid.density_scale() * grid.voxel() * p.step;
-    let mut t = t0 + ray.jitter * p.step;
+    // Memory, not arithmetic, bounds the march on a large grid, so the
+    // samples' corners are looked up `RECORD_AHEAD` samples before they
+    // are shaded (their records prefetched then, their index rows
+    // `CELL_AHEAD` samples ahead) and kept in a ring until their turn.
+    // `lead` steps exactly as a plain `t += step` loop would, so every
+    // sample sits where it did without the ring.
+    const N: usize = RECORD_AHEAD as usize + 1;
+    let mut ring = [(0.0f32, None::<Corners>); N];
+    let (mut head, mut len) = (0usize, 0usize);
+    let mut lead = t0 + ray.jitter * p.step;
+    let cell_lead = (CELL_AHEAD - RECORD_AHEAD) as f32 * p.step;
     let mut trans = 1.0f32;
     let mut acc = Vec3::ZERO;
-    while t < t1 {
-        let at = t;
-        let u = ray.origin + t * ray.dir;
-        // Memory, not arithmetic, bounds the march on a large grid: ask
-        // for the index rows `CELL_AHEAD` samples ahead and, their slots
-        // in cache by then, for the records `RECORD_AHEAD` ahead.
-        grid.prefetch_cell(u + (CELL_AHEAD as f32 * p.step) * ray.dir);
-        grid.prefetch_records::<S>(u + (RECORD_AHEAD as f32 * p.step) * ray.dir);
-        t += p.step;
-        let Some(corners) = grid.corners(u) else {
+    loop {
+        while len < N && lead < t1 {
+            let u = ray.origin + lead * ray.dir;
+            grid.prefetch_cell(u + cell_lead * ray.dir);
+            let corners = grid.corners(u);
+            if let Some(c) = &corners {
+                grid.prefetch_records::<S>(c);
+            }
+            if let Some(slot) = ring.get_mut((head + len) % N) {
+                *slot = (lead, corners);
+            }
+            lead += p.step;
+            len += 1;
+        }
+        let Some(&(at, corners)) = ring.get(head).filter(|_| len > 0) else {
+            break;
+        };
+        head = (head + 1) % N;
+        len -= 1;
+        let Some(corners) = corners else {
             continue;
         };
         let rec = grid.gather::<S>(&corners);
