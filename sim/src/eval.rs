@@ -34,7 +34,7 @@ pub mod verdicts;
 use crate::baselines::Method;
 use crate::device::Device;
 use crate::metrics::Lpips;
-use crate::pipeline::stages::{is_planner, next_budget, plan_within, MAX_REPLANS};
+use crate::pipeline::stages::{is_planner, next_budget, plan_within, planned_bytes, MAX_REPLANS};
 use crate::pipeline::views::ViewScores;
 use crate::pipeline::{
     method_plan, prepare, realise, simulate_devices, Input, Options, Prepared, Progress, Realised,
@@ -322,7 +322,7 @@ fn evaluate_scene(
                     ([d], Some((_, _, r, _))) if is_planner(method) && replans < MAX_REPLANS => {
                         next_budget(
                             d.budget(),
-                            Bytes(plan.budget_bytes),
+                            planned_bytes(&plan),
                             Bytes(r.file_bytes()),
                             replans,
                         )

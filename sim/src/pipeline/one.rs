@@ -1,9 +1,9 @@
 //! One method on one device: what `nerflex run` does and reports.
 
 use super::stages::{
-    self, baseline_plan, is_planner, next_budget, plan_for, plan_within, realise, simulate_on,
-    Input, Options, Prepared, Progress, Realised, RealisedObject, SceneQuality, Timings,
-    MAX_REPLANS,
+    self, baseline_plan, is_planner, next_budget, plan_for, plan_within, planned_bytes, realise,
+    simulate_on, Input, Options, Prepared, Progress, Realised, RealisedObject, SceneQuality,
+    Timings, MAX_REPLANS,
 };
 use super::views::ViewScores;
 use crate::baselines::{Method, Plan};
@@ -114,7 +114,7 @@ pub fn run_one(
     while is_planner(method) && replans < MAX_REPLANS {
         let Some(next) = next_budget(
             device.budget(),
-            Bytes(plan.budget_bytes),
+            planned_bytes(&plan),
             Bytes(realised.file_bytes()),
             replans,
         ) else {
