@@ -57,8 +57,9 @@ pub const MAX_DEPTH_CARVE_ROUNDS: u32 = 8;
 /// visibility rounds and their fixed-point judgement; 4: session 18's
 /// closing of the planes' texel opacity; 5: session 20's fine-tune through
 /// the renderer's supersampling where a voxel spans fewer than 4 pixels,
-/// [`sampling`]).
-pub const TRAINED_BAKER_VERSION: u32 = 5;
+/// [`sampling`]; 6: session 23's hull carve within a 1-pixel radius of a
+/// texel's projection instead of the 3 × 3 pixels around it).
+pub const TRAINED_BAKER_VERSION: u32 = 6;
 
 /// The geometry a bake extracts from the field.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -151,8 +152,10 @@ pub struct TrainedParams {
     /// Empty the texels outside the training views' visual hull.
     pub hull_carve: bool,
     /// A texel is outside only where a view shows background on every
-    /// pixel within this many of its projection.
-    pub hull_margin: u32,
+    /// pixel whose centre lies within this many pixels of its projection
+    /// (`carve::Silhouettes::with_radius`; baker version 6: 1.0, before
+    /// it a whole pixel on every side of the projection's own).
+    pub hull_radius: f32,
     /// Move the quads onto the field's half-transmittance depth
     /// ([`depth::correct`]; one more G-buffer pass).
     pub depth_correct: bool,
@@ -201,7 +204,7 @@ impl TrainedParams {
             sampling: sampling::FinetuneSampling::Auto,
             close: GeometryKind::Planes.default_close(),
             hull_carve: true,
-            hull_margin: 1,
+            hull_radius: 1.0,
             geometry: GeometryKind::Planes,
             surface: extract::SurfaceSettings::default(),
             fit_samples: 65_536,
@@ -265,10 +268,10 @@ impl TrainedParams {
                 close::NEIGHBOURS
             )));
         }
-        if self.hull_margin > 16 {
+        if !(0.5..=16.0).contains(&self.hull_radius) {
             return Err(BakeError::BadParam(format!(
-                "hull margin {} px must be at most 16",
-                self.hull_margin
+                "--hull-radius {} px must lie in [0.5, 16] (below ½ a texel's own pixel may fall outside the window)",
+                self.hull_radius
             )));
         }
         if self.feature_res != 0 && !(4..=2048).contains(&self.feature_res) {
@@ -469,7 +472,7 @@ pub fn bake(
     // A point on an opaque object projects onto its silhouette in every
     // view: texels that some training view shows as background go.
     if params.hull_carve {
-        let sil = super::carve::Silhouettes::new(views).with_margin(params.hull_margin);
+        let sil = super::carve::Silhouettes::new(views).with_radius(params.hull_radius);
         let hull = super::carve::texel_occupancy_hull(&sil, &geo.quads, p);
         for (o, h) in geo.opacity.iter_mut().zip(hull) {
             *o &= h;
@@ -847,7 +850,7 @@ mod tests {
     #[test]
     fn bad_settings_name_their_flag() {
         assert!(TrainedParams::new(32, 5).validate().is_ok());
-        let bad: [Spoil; 17] = [
+        let bad: [Spoil; 19] = [
             ("--surface-keep", |p| p.surface.keep = f32::NAN),
             ("--surface-close", |p| p.close = 9),
             ("--surface-grow", |p| p.surface.grow = 2.0),
@@ -860,6 +863,8 @@ mod tests {
             ("--depth-carve-margin", |p| p.depth_carve_margin = -1.0),
             ("--depth-carve-margin", |p| p.depth_carve_margin = f32::NAN),
             ("--feature-lr", |p| p.finetune.lr_features = 0.0),
+            ("--hull-radius", |p| p.hull_radius = 0.25),
+            ("--hull-radius", |p| p.hull_radius = f32::NAN),
             ("--feature-lr", |p| p.finetune.lr_features = f32::NAN),
             ("--visibility-rounds", |p| p.visibility.rounds = 100),
             ("--visibility-margin", |p| p.visibility.margin = -0.5),

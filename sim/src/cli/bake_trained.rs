@@ -96,6 +96,12 @@ pub struct TrainedArgs {
     /// Keep texels outside the training views' visual hull.
     #[arg(long)]
     pub no_hull_carve: bool,
+    /// The hull carve's window: a texel goes when some view shows
+    /// background on every pixel whose centre lies within this many pixels
+    /// (in x and in y) of its projection; at least ½ (lego (128, 17): 1.0
+    /// is +0.51 dB over 1.5, docs/baking.md, "Session 23").
+    #[arg(long, default_value_t = 1.0)]
+    pub hull_radius: f32,
     /// Move the quads onto the field's half-transmittance depth (one more
     /// G-buffer pass; +0.03 dB on lego, docs/baking.md).
     #[arg(long)]
@@ -180,6 +186,7 @@ impl TrainedArgs {
         };
         p.carve_rounds = self.carve_rounds;
         p.hull_carve = !self.no_hull_carve;
+        p.hull_radius = self.hull_radius;
         p.close = self
             .surface_close
             .unwrap_or(self.surface_kind.default_close());
