@@ -206,9 +206,10 @@ impl Silhouettes {
     /// of 1 keeps them up to a pixel out, which shows as a one-pixel rim
     /// around the object in held-out views (lego (128, 17) +0.51 dB,
     /// `docs/baking.md`, "Session 23"). Below ½ a point's own pixel may
-    /// fall out of the window, so the radius is at least ½.
+    /// fall out of the window, so the radius is at least ½ (and at most
+    /// 64; NaN reads as ½).
     pub fn with_radius(mut self, radius: f32) -> Self {
-        self.radius = Some(radius.max(0.5));
+        self.radius = Some(radius.clamp(0.5, 64.0).max(0.5));
         self
     }
 
@@ -311,8 +312,8 @@ fn point_in_view(p: &Proj, t: &SummedArea, x: Vec3, window: Window) -> PointInVi
     if margin > 0 {
         let (x0, y0) = (ix.saturating_sub(margin), iy.saturating_sub(margin));
         let (x1, y1) = (
-            (ix + margin + 1).min(t.width),
-            (iy + margin + 1).min(t.height),
+            ix.saturating_add(margin).saturating_add(1).min(t.width),
+            iy.saturating_add(margin).saturating_add(1).min(t.height),
         );
         return if t.count_not_background(x0, y0, x1, y1) == 0 {
             PointInView::Background
@@ -543,7 +544,10 @@ fn judge_quad(p: &Proj, t: &SummedArea, q: &Quad, window: Window) -> QuadVerdict
     let count = t.count(xa, ya, xb, yb);
     let (ma, mb) = (
         (xa.saturating_sub(margin), ya.saturating_sub(margin)),
-        ((xb + margin).min(t.width), (yb + margin).min(t.height)),
+        (
+            xb.saturating_add(margin).min(t.width),
+            yb.saturating_add(margin).min(t.height),
+        ),
     );
     if t.count_not_background(ma.0, ma.1, mb.0, mb.1) == 0 {
         QuadVerdict::Background
@@ -954,10 +958,20 @@ mod tests {
         assert!(kept(32.7, Window::Margin(1)));
         assert!(kept(32.95, Window::Margin(1)));
         assert!(!kept(33.05, Window::Margin(1)));
-        // The builder clamps the radius to ½: a point's own pixel stays in.
+        // The builder clamps the radius to [½, 64] (NaN: ½), so a point's
+        // own pixel stays in and no window overflows.
         let s = Silhouettes::new(std::slice::from_ref(&view)).with_radius(0.0);
         assert!(matches!(s.window(), Window::Radius(r) if r == 0.5));
         assert!(s.inside(at(31.99)));
+        let nan = Silhouettes::new(std::slice::from_ref(&view)).with_radius(f32::NAN);
+        assert!(matches!(nan.window(), Window::Radius(r) if r == 0.5));
+        let huge = Silhouettes::new(std::slice::from_ref(&view)).with_radius(1e30);
+        assert!(huge.inside(at(60.0)), "64 px reaches the object");
+        let q = crate::bake::quads::Quad::facing_minus_y(at(40.0), 0.01);
+        let _ = texel_occupancy_hull(&huge, &[q], 3);
+        let wide = Silhouettes::new(std::slice::from_ref(&view)).with_margin(u32::MAX);
+        assert!(wide.inside(at(60.0)));
+        let _ = texel_occupancy_hull(&wide, &[q], 3);
         // Near the image's edges the window clips without panicking.
         for px in [0.01, 63.99] {
             let _ = kept(px, Window::Radius(16.0));
