@@ -47,13 +47,9 @@ pub const MAX_GRID: u32 = 512;
 pub struct Silhouettes {
     tables: Vec<SummedArea>,
     projs: Vec<Proj>,
-    /// A point is background in a view only if every pixel within this
-    /// many of its own is ([`Silhouettes::with_margin`]).
-    margin: u32,
-    /// When set, replaces `margin`: the pixels whose centres lie within
-    /// this many pixels (Chebyshev) of a point's projection
-    /// ([`Silhouettes::with_radius`]).
-    radius: Option<f32>,
+    /// Which pixels around a point's projection a view reads
+    /// ([`Silhouettes::with_margin`], [`Silhouettes::with_radius`]).
+    window: Window,
 }
 
 struct SummedArea {
@@ -182,8 +178,7 @@ impl Silhouettes {
                     }
                 })
                 .collect(),
-            margin: 0,
-            radius: None,
+            window: Window::Margin(0),
         }
     }
 
@@ -193,7 +188,7 @@ impl Silhouettes {
     /// pixel by rounding alone, which costs little at 800 px but whole
     /// bars of a lattice at 96 px.
     pub fn with_margin(mut self, margin: u32) -> Self {
-        self.margin = margin;
+        self.window = Window::Margin(margin);
         self
     }
 
@@ -209,16 +204,13 @@ impl Silhouettes {
     /// fall out of the window, so the radius is at least ½ (and at most
     /// 64; NaN reads as ½).
     pub fn with_radius(mut self, radius: f32) -> Self {
-        self.radius = Some(radius.clamp(0.5, 64.0).max(0.5));
+        self.window = Window::Radius(radius.clamp(0.5, 64.0).max(0.5));
         self
     }
 
     /// How a view's pixels around a projection are read.
     fn window(&self) -> Window {
-        match self.radius {
-            Some(r) => Window::Radius(r),
-            None => Window::Margin(self.margin),
-        }
+        self.window
     }
 
     /// Number of views.
