@@ -219,7 +219,23 @@ fn device_from_a_file() {
 
 #[test]
 fn two_geometry_scene_plans_name_each_geometry() {
-    let scene = "results/plan/geometry/scene.json";
+    // A table scene where lego is worth more as a mesh and chair as planes
+    // (the committed lego + chair profiles choose planes for both since
+    // session 24, docs/profiler.md).
+    let dir = tempfile::tempdir().unwrap();
+    let scene_file = dir.path().join("scene.json");
+    std::fs::write(
+        &scene_file,
+        r#"{"objects": [
+            {"name": "lego", "configs": [
+                {"g": 128, "p": 17, "size_bytes": 100000000, "quality": 0.93, "geometry": "planes"},
+                {"g": 256, "p": 5, "size_bytes": 60000000, "quality": 0.94, "geometry": "mesh"}]},
+            {"name": "chair", "configs": [
+                {"g": 128, "p": 9, "size_bytes": 50000000, "quality": 0.95, "geometry": "planes"},
+                {"g": 128, "p": 5, "size_bytes": 40000000, "quality": 0.90, "geometry": "mesh"}]}]}"#,
+    )
+    .unwrap();
+    let scene = scene_file.to_str().unwrap();
     let args = [
         "plan",
         "--scene",

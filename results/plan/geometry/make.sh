@@ -8,7 +8,7 @@
 #    sizes and SSIM are PREDICTED by the profiles; the planner maximises the
 #    sum of predicted SSIM under the budget (sizes are file bytes, MB = 10^6).
 #    Beside each choice: the same configuration as MEASURED in the committed
-#    sweeps (results/bake/trained/samples.csv, samples-mesh.csv; the data the
+#    sweeps (results/bake/trained/samples-v6.csv, samples-mesh.csv; the data the
 #    profiles were fitted to).
 # 3. measured.csv (with --measure): the chosen configurations at $MEASURE_BUDGETS
 #    baked afresh by the trained baker and MEASURED on 10 test views.
@@ -50,7 +50,7 @@ plan() {
 sweep() {
   awk -F, 'FNR == 1 { geo = (FILENAME ~ /mesh/) ? "mesh" : "planes"; next }
            { print $1 "," $2 "," $3 "," geo "," $4 "," $5 "," $7 "," $8 "," $9 }' \
-    $S/samples.csv $S/samples-mesh.csv
+    $S/samples-v6.csv $S/samples-mesh.csv
 }
 sweep > /tmp/nerflex-geometry-sweep.csv
 {
@@ -106,8 +106,9 @@ fi
   if [ -f $O/measured.csv ]; then
     echo
     echo "**Measured** afresh (\`nerflex bake --surface G --measure --max-test-views 10\`, 3-epoch default"
-    echo "bakes from the session-15 fields) at the budgets where the union changes lego's choice. File MB"
-    echo "is what the planner's sizes predict; GPU MiB is the asset's texture and geometry memory."
+    echo "bakes from the session-15 fields) at the budgets where the union changed lego's choice when"
+    echo "\`measured.csv\` was written (session 16's planes profiles and baker; the plans above may differ)."
+    echo "File MB is what the planner's sizes predict; GPU MiB is the asset's texture and geometry memory."
     echo
     echo "| budget MB | choice | object | config | predicted MB | predicted SSIM | measured file MB | measured GPU MiB | measured SSIM | PSNR dB | LPIPS |"
     echo "|---:|---|---|---|---:|---:|---:|---:|---:|---:|---:|"

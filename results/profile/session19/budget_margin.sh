@@ -7,14 +7,15 @@
 # measured file bytes of the same configurations
 # (results/bake/trained/samples*.csv), as a share of the budget.
 # Usage: results/profile/session19/budget_margin.sh [path/to/nerflex] > results/profile/session19/budget_margin.txt
-# (GEOS and MARGINS, space-separated, replace the geometries and margins:
-# results/profile/session20/budget_margin.sh sets them.)
+# (GEOS and MARGINS, space-separated, replace the geometries and margins,
+# PLANES_SAMPLES the planes' sweep: results/profile/session20/ and session24/
+# budget_margin.sh set them.)
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 N=${1:-target/release/nerflex}
 echo "geometry margin  budget  planned-against MB  predicted MB  measured MB  measured − budget  predicted SSIM  plan (object(g,p))"
 for geo in ${GEOS:-planes mesh}; do
-    S=results/bake/trained/samples.csv
+    S=${PLANES_SAMPLES:-results/bake/trained/samples.csv}
     P=results/profile/trained/profiles.json
     if [ $geo = mesh ]; then
         S=results/bake/trained/samples-mesh.csv

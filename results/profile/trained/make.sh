@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates results/profile/trained/ from the trained baker's samples:
-#   results/bake/trained/samples.csv            lego + chair at 800 × 800 (90 training views),
+#   results/bake/trained/samples-v6.csv         lego + chair at 800 × 800 (90 training views), baker version 6
+#                                               (session 23; samples.csv is session 20's version-5 sweep),
 #                                               g {16…256} × p {5…17}, `nerflex bake --sweep --field …`
 #   results/bake/trained/samples-mesh.csv       the same sweep with `--surface mesh` (session 15)
 #   results/bake/trained/samples-eval-paper.csv the paper-scale evaluation's profiler samples
@@ -10,7 +11,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 N=${1:-target/release/nerflex}
-S=results/bake/trained/samples.csv
+S=results/bake/trained/samples-v6.csv
 E=results/bake/trained/samples-eval-paper.csv
 M=results/bake/trained/samples-mesh.csv
 O=results/profile/trained
