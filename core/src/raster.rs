@@ -834,6 +834,23 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
         })
     }
 
+    /// Whether tile-local pixel `(x, y)` shows a fragment here that lies in
+    /// front of what `behind` (the same tile, drawn with the same quads
+    /// under another alpha test) shows there, by more than the peel's
+    /// margin and on another quad; where `behind` is empty, whether this
+    /// one is covered. `false` outside the tile.
+    #[inline]
+    pub fn nearer_than(&self, behind: &Self, x: u32, y: u32) -> bool {
+        if x >= self.w || y >= self.h {
+            return false;
+        }
+        let at = |t: &Self| t.g.get(y as usize).and_then(|r| r.get(x as usize)).copied();
+        let (Some(f), Some(b)) = (at(self), at(behind)) else {
+            return false;
+        };
+        f.inv_w > 0.0 && (b.inv_w <= 0.0 || peels(&f, b.quad, b.inv_w))
+    }
+
     /// Calls `f(x, y, sample)` for every pixel of the tile, row-major, with
     /// image coordinates.
     pub fn for_each_sample(&self, mut f: impl FnMut(u32, u32, Option<Sample>)) {

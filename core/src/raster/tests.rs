@@ -511,6 +511,16 @@ fn peeling_shows_what_lies_behind_the_front_sample() {
         fourth.draw_behind(q, &a, &third);
     }
     assert!(fourth.sample(x, y).is_none());
+    // Nearer than: the front layer before the one behind it, never the
+    // reverse nor itself; a covered pixel before an empty one; outside the
+    // tile, nothing.
+    assert!(front.nearer_than(&behind, x, y));
+    assert!(!behind.nearer_than(&front, x, y));
+    assert!(!front.nearer_than(&front, x, y));
+    assert!(third.nearer_than(&fourth, x, y));
+    assert!(!fourth.nearer_than(&third, x, y));
+    assert!(!front.nearer_than(&behind, 0, 0));
+    assert!(!front.nearer_than(&behind, 32, 16) && !front.nearer_than(&behind, u32::MAX, 0));
 }
 
 /// A quad for the two-layer property: in a plane near `y` (tilted by

@@ -312,6 +312,13 @@ impl TrainedParams {
                 v.margin
             )));
         }
+        if let Some(m) = v.grow {
+            if !(m.is_finite() && m >= 0.0) {
+                return Err(BakeError::BadParam(format!(
+                    "--visibility-grow {m} must be a finite number ≥ 0"
+                )));
+            }
+        }
         let lr = self.finetune.lr_features;
         if !(lr.is_finite() && lr > 0.0 && lr <= 1.0) {
             return Err(BakeError::BadParam(format!(
@@ -495,7 +502,13 @@ pub fn bake(
     let mut layers: Option<visibility::Peel> = None;
     let gb = loop {
         let gb = if peel_first {
-            let peeled = visibility::peel(&geo, p, views, supersample)?;
+            let peeled = visibility::peel(
+                &geo,
+                p,
+                views,
+                supersample,
+                params.visibility.grow.is_some(),
+            )?;
             let (gb, _) = peeled.gbuffers(&geo.opacity, supersample);
             layers = Some(peeled);
             gb
@@ -578,7 +591,8 @@ pub fn bake(
         geo.opacity = opacity;
         let texel_point = |t: usize| geo.texel_point(p, t as u32);
         // The feature lattice around every opaque texel's point, built once:
-        // later rounds only make texels transparent.
+        // later rounds make texels transparent, or (growing) opaque only
+        // where the lattice reaches.
         let grid = grid.get_or_insert_with(|| {
             use rayon::prelude::*;
             let points: Vec<Vec3> = geo
@@ -689,7 +703,13 @@ pub fn bake(
                 unkept = pe.renumber(&new_index, p2);
                 pe
             }
-            None => visibility::peel(&geo, p, views, supersample)?,
+            None => visibility::peel(
+                &geo,
+                p,
+                views,
+                supersample,
+                params.visibility.grow.is_some(),
+            )?,
         };
         drop(new_index);
         let v1 = Instant::now();
@@ -724,6 +744,8 @@ pub fn bake(
             pixels: r.pixels,
             shown_texels: r.shown_texels,
             removed_texels: visibility.removed_texels + r.removed_texels,
+            nearer_texels: r.nearer_texels,
+            added_texels: visibility.added_texels + r.added_texels,
             error_before: r.error_before,
             error_change: visibility.error_change + r.error_change,
             lost_subsamples: visibility.lost_subsamples + lost,
@@ -850,7 +872,7 @@ mod tests {
     #[test]
     fn bad_settings_name_their_flag() {
         assert!(TrainedParams::new(32, 5).validate().is_ok());
-        let bad: [Spoil; 19] = [
+        let bad: [Spoil; 21] = [
             ("--surface-keep", |p| p.surface.keep = f32::NAN),
             ("--surface-close", |p| p.close = 9),
             ("--surface-grow", |p| p.surface.grow = 2.0),
@@ -869,6 +891,10 @@ mod tests {
             ("--visibility-rounds", |p| p.visibility.rounds = 100),
             ("--visibility-margin", |p| p.visibility.margin = -0.5),
             ("--visibility-margin", |p| p.visibility.margin = f32::NAN),
+            ("--visibility-grow", |p| p.visibility.grow = Some(-1.0)),
+            ("--visibility-grow", |p| {
+                p.visibility.grow = Some(f32::INFINITY)
+            }),
             ("--surface mesh", |p| {
                 p.geometry = GeometryKind::Mesh;
                 p.grid = 1024;

@@ -368,6 +368,18 @@ pub(super) fn pages_of(geo: &super::extract::Geometry, p: u32) -> Result<Geometr
     Ok((layout, quads, pages))
 }
 
+/// The alpha pages of `layout` for the texel opacity `opacity` (p² per
+/// quad): [`pages_of`]'s pages, for another opacity of the same quads.
+pub(super) fn alpha_pages(layout: &AtlasLayout, opacity: &[bool]) -> Vec<AlphaPage> {
+    (0..layout.pages.len())
+        .into_par_iter()
+        .map(|i| {
+            let (w, h) = layout.page_size(i);
+            (w, h, opacity_bits(layout, i, opacity))
+        })
+        .collect()
+}
+
 /// The alpha bits of page `page` of `layout` whose texels' opacity is
 /// `opacity` (p² per quad, row-major in its cell, as `export::atlas` lays
 /// texels out).

@@ -12,6 +12,13 @@
 //! removal lowers the error are removed. Each texel is judged with every
 //! other texel in place, so a round is exact only to first order; the
 //! bake re-rasterizes and fine-tunes after each round.
+//!
+//! With `grow`, the question is also asked the other way: where a
+//! transparent texel lies in front of what a pixel shows (a third layer,
+//! the quads drawn through the inverted alpha test), each pixel is shaded
+//! with that texel opaque, and texels whose addition lowers their pixels'
+//! error become opaque. Soft compositing can add coverage as well as take
+//! it away; a remove-only rule cannot mend an edge the field cut short.
 
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
@@ -21,7 +28,7 @@ use super::extract::Geometry;
 use super::featgrid::FeatureGrid;
 use super::gbuffer::{self, Subsamples, NO_TEXEL, SUBSAMPLES, TILE};
 use super::net::{self, FEATURES, LANES};
-use nerflex_core::raster::TwoLayers;
+use nerflex_core::raster::{TileRenderer, TwoLayers};
 use nerflex_core::shader::{MlpWeights, INPUTS};
 
 /// One covered pixel of a training view, with two layers: per subsample
@@ -33,6 +40,10 @@ pub struct PeelPixel {
     pub front: Subsamples,
     /// The texels behind them.
     pub behind: Subsamples,
+    /// With `grow`: the nearest transparent texel in front of each front
+    /// texel (where there is none in front, the nearest transparent one);
+    /// [`NO_TEXEL`] where none or without `grow`.
+    pub nearer: Subsamples,
     /// The view direction the renderer feeds the MLP here.
     pub dir: [f32; 3],
     /// The training image here composited over white, in [0, 1].
@@ -58,13 +69,32 @@ pub struct Peel {
 pub const MAX_ROUNDS: u32 = 8;
 
 /// Settings of the visibility rounds.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Clone, Copy, PartialEq)]
 pub struct VisibilitySettings {
     /// Rounds of (peel, decide, re-rasterize, fine-tune); 0 = off.
     pub rounds: u32,
     /// A texel goes when its removal lowers the summed squared error (RGB
     /// in [0, 1]) of its pixels by more than this.
     pub margin: f32,
+    /// Growing: a transparent texel in front of what pixels show becomes
+    /// opaque when that lowers their summed squared error by more than
+    /// this margin; `None`: no texel is added (and the layers skip the
+    /// transparent ones).
+    pub grow: Option<f32>,
+}
+
+/// `grow` shows only when set: bake store keys are the settings' debug
+/// text (`pipeline::bakes`), and bakes without it are the same as before.
+impl std::fmt::Debug for VisibilitySettings {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut d = f.debug_struct("VisibilitySettings");
+        d.field("rounds", &self.rounds)
+            .field("margin", &self.margin);
+        if let Some(g) = self.grow {
+            d.field("grow", &g);
+        }
+        d.finish()
+    }
 }
 
 impl Default for VisibilitySettings {
@@ -72,6 +102,7 @@ impl Default for VisibilitySettings {
         Self {
             rounds: 1,
             margin: 0.01,
+            grow: None,
         }
     }
 }
@@ -85,6 +116,10 @@ pub struct VisibilityReport {
     pub shown_texels: u64,
     /// Texels made transparent.
     pub removed_texels: u64,
+    /// Transparent texels some pixel shows nearer (judged for `grow`).
+    pub nearer_texels: u64,
+    /// Texels made opaque (`grow`).
+    pub added_texels: u64,
     /// Summed squared error of the judged pixels before, and the sum of
     /// the removed texels' (negative) changes: a first-order estimate.
     pub error_before: f64,
@@ -107,16 +142,31 @@ pub struct VisibilityReport {
 
 /// The two-layer G-buffers of `geo` at patch `p` on `views` (2 × 2
 /// subsamples when `supersample`), every covered pixel of the object
-/// (pixels another object covers are skipped), view after view.
+/// (pixels another object covers are skipped), view after view; with
+/// `grow` also the transparent texels in front ([`PeelPixel::nearer`]),
+/// and the pixels only those cover.
 pub fn peel(
     geo: &Geometry,
     p: u32,
     views: &[BakeView<'_>],
     supersample: bool,
+    grow: bool,
 ) -> Result<Peel, BakeError> {
     let (layout, quads, pages) = gbuffer::pages_of(geo, p)?;
     let quads: Vec<&[_]> = quads.iter().map(Vec::as_slice).collect();
     let masks = gbuffer::alpha_masks(&pages)?;
+    // The transparent texels, drawn as if they were the opaque ones.
+    let inverted: Vec<bool> = if grow {
+        geo.opacity.iter().map(|&o| !o).collect()
+    } else {
+        Vec::new()
+    };
+    let inv_pages = if grow {
+        gbuffer::alpha_pages(&layout, &inverted)
+    } else {
+        Vec::new()
+    };
+    let inv_masks = gbuffer::alpha_masks(&inv_pages)?;
     type ViewLayers = (Vec<PeelPixel>, (u64, u64));
     let per: Vec<Result<ViewLayers, BakeError>> = views
         .par_iter()
@@ -126,6 +176,7 @@ pub fn peel(
             let binned = gbuffer::bin(&quads, &view);
             let t = TILE as u32;
             let mut two = Box::new(TwoLayers::<TILE, TILE>::new());
+            let mut near = Box::new(TileRenderer::<TILE, TILE>::new());
             let mut out = Vec::new();
             let mut tiles = (0u64, 0u64);
             for (b, bin) in binned.bins.iter().enumerate() {
@@ -146,12 +197,22 @@ pub fn peel(
                 }
                 // Rare: a pixel kept too little to decide what lies behind.
                 tiles.1 += u64::from(two.resolve(drawn()));
+                if grow {
+                    near.begin(&view, bx * t, by * t);
+                    for &i in bin {
+                        let sq = &binned.projected[i as usize];
+                        if let Some(m) = inv_masks.get(sq.part as usize) {
+                            near.draw(sq, m);
+                        }
+                    }
+                }
                 let (front, back) = (two.front(), two.back());
                 let (x0, y0, w, h) = front.rect();
                 for oy in 0..h / ss {
                     for ox in 0..w / ss {
                         let mut px_front = [NO_TEXEL; SUBSAMPLES];
                         let mut px_back = [NO_TEXEL; SUBSAMPLES];
+                        let mut px_near = [NO_TEXEL; SUBSAMPLES];
                         for i in 0..(ss * ss) as usize {
                             let (sx, sy) = (ox * ss + i as u32 % ss, oy * ss + i as u32 / ss);
                             if let Some(t) = gbuffer::texel_at(front, &layout, sx, sy) {
@@ -159,8 +220,12 @@ pub fn peel(
                                 px_back[i] =
                                     gbuffer::texel_at(back, &layout, sx, sy).unwrap_or(NO_TEXEL);
                             }
+                            if grow && near.nearer_than(front, sx, sy) {
+                                px_near[i] =
+                                    gbuffer::texel_at(&near, &layout, sx, sy).unwrap_or(NO_TEXEL);
+                            }
                         }
-                        if px_front.iter().all(|&t| t == NO_TEXEL) {
+                        if px_front.iter().chain(&px_near).all(|&t| t == NO_TEXEL) {
                             continue;
                         }
                         let (x, y) = (x0 / ss + ox, y0 / ss + oy);
@@ -170,6 +235,7 @@ pub fn peel(
                         out.push(PeelPixel {
                             front: px_front,
                             behind: px_back,
+                            nearer: px_near,
                             dir: out_view.pixel_dir_f32(x, y),
                             target,
                             cov,
@@ -194,8 +260,10 @@ impl Peel {
     /// The G-buffers once the texels `opacity` marks transparent are gone:
     /// where a subsample's front texel went, the texel behind it shows
     /// (exact while that one stays; where both went the subsample counts
-    /// as uncovered, as the layer behind both is not kept). Returns them
-    /// and the number of such subsamples.
+    /// as uncovered, as the layer behind both is not kept), and where its
+    /// nearer texel became opaque, that one (exact where no other
+    /// transparent texel in front became opaque). Returns them and the
+    /// number of subsamples that lost both layers.
     pub fn gbuffers(&self, opacity: &[bool], supersample: bool) -> (gbuffer::GBuffers, u64) {
         let opaque = |t: u32| opacity.get(t as usize) == Some(&true);
         let mut starts = Vec::with_capacity(self.per_view.len());
@@ -214,8 +282,10 @@ impl Peel {
                 for px in &self.pixels[at..at + n] {
                     let mut shown = [NO_TEXEL; SUBSAMPLES];
                     let mut k = 0;
-                    for (&f, &b) in px.front.iter().zip(&px.behind) {
-                        let t = if opaque(f) {
+                    for ((&f, &b), &n) in px.front.iter().zip(&px.behind).zip(&px.nearer) {
+                        let t = if opaque(n) {
+                            n
+                        } else if opaque(f) {
                             f
                         } else if f == NO_TEXEL {
                             continue;
@@ -282,52 +352,52 @@ impl Peel {
             .par_iter_mut()
             .map(|px| {
                 px.front.iter_mut().map(map).sum::<u64>();
+                px.nearer.iter_mut().map(map).sum::<u64>();
                 px.behind.iter_mut().map(map).sum::<u64>()
             })
             .sum()
     }
 }
 
-/// The 8-bit features of every opaque texel of `geo` that `pixels` show
-/// or hide (the lattice read at its point, as the atlas will store it);
-/// zeros elsewhere.
+/// The 8-bit features of every texel of `geo` that `pixels` show, hide or
+/// could show (the lattice read at its point, as the atlas will store it),
+/// and whether the lattice reaches it; zeros and `false` elsewhere.
 fn texel_bytes(
     geo: &Geometry,
     p: u32,
     grid: &FeatureGrid,
     pixels: &[PeelPixel],
-) -> Vec<[u8; FEATURES]> {
+) -> (Vec<[u8; FEATURES]>, Vec<bool>) {
     let needed: Vec<AtomicBool> = (0..geo.opacity.len())
         .map(|_| AtomicBool::new(false))
         .collect();
     pixels.par_iter().for_each(|px| {
-        for &t in px.front.iter().chain(&px.behind) {
+        for &t in px.front.iter().chain(&px.behind).chain(&px.nearer) {
             if let Some(n) = needed.get(t as usize) {
                 n.store(true, Ordering::Relaxed);
             }
         }
     });
-    geo.opacity
-        .par_iter()
+    (0..geo.opacity.len())
+        .into_par_iter()
         .zip(&needed)
-        .enumerate()
-        .map(|(t, (&o, n))| {
-            let wanted = o && n.load(Ordering::Relaxed);
-            let Some(tp) = wanted
+        .map(|(t, n)| {
+            let Some(tp) = n
+                .load(Ordering::Relaxed)
                 .then(|| grid.taps(geo.texel_point(p, t as u32)))
                 .flatten()
             else {
-                return [0; FEATURES];
+                return ([0; FEATURES], false);
             };
             let f = tp.gather(&grid.values);
-            std::array::from_fn(|c| net::encode(c, f[c], true))
+            (std::array::from_fn(|c| net::encode(c, f[c], true)), true)
         })
-        .collect()
+        .unzip()
 }
 
 /// One shading of a pixel to judge: its features' bytes summed over `n`
-/// covered subsamples of `samples`, and the texel whose removal it tests
-/// ([`NO_TEXEL`]: the pixel as it is).
+/// covered subsamples of `samples`, and the texel whose removal (or, if
+/// transparent, addition) it tests ([`NO_TEXEL`]: the pixel as it is).
 #[derive(Clone, Copy)]
 struct Shading {
     sum: [u32; FEATURES],
@@ -397,7 +467,10 @@ fn errors8(
 const DELTA_UNIT: f64 = (1u64 << 32) as f64;
 
 /// One round: judges every texel `pixels` show first and makes the ones
-/// whose removal lowers their pixels' error transparent in `geo`.
+/// whose removal lowers their pixels' error transparent in `geo`; with
+/// `settings.grow`, also every transparent texel they show nearer, and
+/// makes the ones whose addition lowers the error by more than its margin
+/// opaque.
 pub fn prune(
     geo: &mut Geometry,
     p: u32,
@@ -408,7 +481,7 @@ pub fn prune(
     settings: &VisibilitySettings,
 ) -> VisibilityReport {
     let samples = if supersample { SUBSAMPLES } else { 1 };
-    let bytes = texel_bytes(geo, p, grid, pixels);
+    let (bytes, readable) = texel_bytes(geo, p, grid, pixels);
     // Per texel: the summed change of squared error, and whether a pixel
     // shows it.
     let delta: Vec<AtomicI64> = (0..geo.opacity.len()).map(|_| AtomicI64::new(0)).collect();
@@ -436,6 +509,23 @@ pub fn prune(
                         }
                     }
                     jobs.push((shading(&without, samples, &bytes, t), i));
+                }
+                // With each transparent texel in front made opaque (one
+                // the lattice does not reach cannot be).
+                let mut done = [NO_TEXEL; SUBSAMPLES];
+                for (k, &t) in px.nearer.iter().take(samples).enumerate() {
+                    if t == NO_TEXEL || done.contains(&t) || readable.get(t as usize) != Some(&true)
+                    {
+                        continue;
+                    }
+                    done[k] = t;
+                    let mut with = px.front;
+                    for (w, &n) in with.iter_mut().zip(&px.nearer) {
+                        if n == t {
+                            *w = t;
+                        }
+                    }
+                    jobs.push((shading(&with, samples, &bytes, t), i));
                 }
             }
             let mut errors = vec![0f32; jobs.len()];
@@ -472,11 +562,25 @@ pub fn prune(
         if !s.load(Ordering::Relaxed) {
             continue;
         }
-        report.shown_texels += 1;
+        let opaque = geo.opacity[t];
+        if opaque {
+            report.shown_texels += 1;
+        } else {
+            report.nearer_texels += 1;
+        }
         let d = d.load(Ordering::Relaxed) as f64 / DELTA_UNIT;
-        if d < -f64::from(settings.margin) {
-            geo.opacity[t] = false;
-            report.removed_texels += 1;
+        let margin = if opaque {
+            settings.margin
+        } else {
+            settings.grow.unwrap_or(f32::INFINITY)
+        };
+        if d < -f64::from(margin) {
+            geo.opacity[t] = !opaque;
+            if opaque {
+                report.removed_texels += 1;
+            } else {
+                report.added_texels += 1;
+            }
             report.error_change += d;
         }
     }
@@ -547,7 +651,7 @@ mod tests {
             silhouette: Silhouette::Alpha,
         }];
         for supersample in [false, true] {
-            let peeled = peel(&geo, p, &views, supersample).unwrap();
+            let peeled = peel(&geo, p, &views, supersample, false).unwrap();
             assert!(peeled
                 .pixels
                 .iter()
@@ -566,7 +670,105 @@ mod tests {
             pruned.opacity[9 + 4] = false;
             let (_, lost) = peeled.gbuffers(&pruned.opacity, supersample);
             assert!(lost > 0, "supersample {supersample}");
+            // Growing: the front quad's centre and a corner start
+            // transparent; the layers find them nearer than the back quad,
+            // and once they are opaque again the G-buffers the layers give
+            // are a new rasterization's.
+            let mut holed = geo.clone();
+            holed.opacity[4] = false;
+            holed.opacity[0] = false;
+            let peeled = peel(&holed, p, &views, supersample, true).unwrap();
+            assert!(peeled.pixels.iter().any(|px| px.nearer.contains(&4)));
+            assert!(peeled.pixels.iter().all(|px| px
+                .nearer
+                .iter()
+                .all(|&t| t == NO_TEXEL || !holed.opacity[t as usize])));
+            let (derived, lost) = peeled.gbuffers(&geo.opacity, supersample);
+            let fresh = gbuffer::of_geometry(&geo, p, &views, supersample).unwrap();
+            assert_eq!(lost, 0);
+            assert_eq!(derived.pixels, fresh.pixels, "supersample {supersample}");
+            assert_eq!(derived.subsamples, fresh.subsamples);
+            // Without growing, no nearer texels.
+            let plain = peel(&holed, p, &views, supersample, false).unwrap();
+            assert!(plain
+                .pixels
+                .iter()
+                .all(|px| px.nearer.iter().all(|&t| t == NO_TEXEL)));
         }
+    }
+
+    #[test]
+    fn the_settings_text_names_grow_only_when_set() {
+        let mut v = VisibilitySettings::default();
+        assert_eq!(
+            format!("{v:?}"),
+            "VisibilitySettings { rounds: 1, margin: 0.01 }"
+        );
+        v.grow = Some(0.4);
+        assert!(format!("{v:?}").ends_with("grow: 0.4 }"), "{v:?}");
+    }
+
+    #[test]
+    fn a_transparent_texel_comes_only_where_the_photos_show_it() {
+        let p = 2;
+        // Quad 0 (dark, f₀ = 0.1) transparent in front of quad 1 (light,
+        // f₀ = 0.9), far apart in the lattice so their vertices are their
+        // own.
+        let mut geo = Geometry {
+            cube: Aabb {
+                min: Vec3::ZERO,
+                max: Vec3::ONE,
+            },
+            voxel: 0.25,
+            shell_voxels: 2,
+            full_voxels: 0,
+            quads: vec![quad(0.0, 0.1), quad(0.7, 0.9)],
+            opacity: vec![false, false, false, false, true, true, true, true],
+        };
+        let points: Vec<Vec3> = (0..8).map(|t| geo.texel_point(p, t)).collect();
+        let mut grid = FeatureGrid::new(&geo.cube, 4, &points);
+        for (t, x) in points.iter().enumerate() {
+            let f0 = if t < 4 { 0.1 } else { 0.9 };
+            for &s in &grid.taps(*x).unwrap().slot {
+                grid.values[s as usize] = [f0, 0.5, 0.5, 0.0, 0.5, 0.5, 0.5, 0.0];
+            }
+        }
+        let (dark, light) = ([0.02f32; 3], [0.98f32; 3]);
+        let one = |t: u32| [t, NO_TEXEL, NO_TEXEL, NO_TEXEL];
+        let px = |front: u32, nearer: u32, target: [f32; 3], cov: u8| PeelPixel {
+            front: one(front),
+            behind: one(NO_TEXEL),
+            nearer: one(nearer),
+            dir: [0.0, 0.0, 1.0],
+            target,
+            cov,
+        };
+        let pixels = [
+            // Texel 0: the photos show it, not the light quad: it comes.
+            px(4, 0, dark, 255),
+            px(5, 0, dark, 255),
+            // Texel 1: the photos show the light quad: it stays out.
+            px(6, 1, light, 255),
+            // Texel 2: in front of nothing, where the photos show
+            // background: it stays out.
+            px(NO_TEXEL, 2, [1.0; 3], 0),
+            // Texel 3: seen nowhere nearer: not judged.
+            px(7, NO_TEXEL, light, 255),
+        ];
+        let settings = VisibilitySettings {
+            rounds: 1,
+            margin: 0.0,
+            grow: Some(0.0),
+        };
+        let r = prune(&mut geo, p, &pixels, &grid, &mlp(), false, &settings);
+        assert_eq!((r.nearer_texels, r.added_texels), (3, 1), "{r:?}");
+        assert_eq!(
+            geo.opacity,
+            [true, false, false, false, true, true, true, true],
+            "{r:?}"
+        );
+        assert_eq!(r.removed_texels, 0);
+        assert!(r.error_change < 0.0);
     }
 
     #[test]
@@ -597,12 +799,13 @@ mod tests {
         let every = [PeelPixel {
             front: [0, 1, 2, 3],
             behind: [4, 5, 6, 7],
+            nearer: [NO_TEXEL; SUBSAMPLES],
             dir: [0.0, 0.0, 1.0],
             target: [0.0; 3],
             cov: 255,
         }];
         let shade = |t: u32| {
-            let b = texel_bytes(&geo, p, &grid, &every);
+            let (b, _) = texel_bytes(&geo, p, &grid, &every);
             let f = std::array::from_fn(|c| net::decode(c, b[t as usize][c]));
             let y = net::to_u8(net::forward(&mlp, &net::input(&f, [0.0, 0.0, 1.0])).y);
             y.map(|v| f32::from(v) / 255.0)
@@ -612,6 +815,7 @@ mod tests {
         let px = |front: u32, behind: u32, target: [f32; 3]| PeelPixel {
             front: [front, NO_TEXEL, NO_TEXEL, NO_TEXEL],
             behind: [behind, NO_TEXEL, NO_TEXEL, NO_TEXEL],
+            nearer: [NO_TEXEL; SUBSAMPLES],
             dir: [0.0, 0.0, 1.0],
             target,
             cov: 255,
@@ -631,6 +835,7 @@ mod tests {
         let mut settings = VisibilitySettings {
             rounds: 1,
             margin: 0.0,
+            grow: None,
         };
         let mut g = geo.clone();
         let r = prune(&mut g, p, &pixels, &grid, &mlp, false, &settings);
