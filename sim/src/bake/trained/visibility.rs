@@ -697,6 +697,33 @@ mod tests {
         }
     }
 
+    /// Quad 0 (dark, f₀ = 0.1) in front of quad 1 (light, f₀ = 0.9), 2 × 2
+    /// texels each with `opacity`, far apart in the lattice so their
+    /// vertices are their own; and that lattice.
+    fn dark_before_light(opacity: Vec<bool>) -> (Geometry, FeatureGrid) {
+        let p = 2;
+        let geo = Geometry {
+            cube: Aabb {
+                min: Vec3::ZERO,
+                max: Vec3::ONE,
+            },
+            voxel: 0.25,
+            shell_voxels: 2,
+            full_voxels: 0,
+            quads: vec![quad(0.0, 0.1), quad(0.7, 0.9)],
+            opacity,
+        };
+        let points: Vec<Vec3> = (0..8).map(|t| geo.texel_point(p, t)).collect();
+        let mut grid = FeatureGrid::new(&geo.cube, 4, &points);
+        for (t, x) in points.iter().enumerate() {
+            let f0 = if t < 4 { 0.1 } else { 0.9 };
+            for &s in &grid.taps(*x).unwrap().slot {
+                grid.values[s as usize] = [f0, 0.5, 0.5, 0.0, 0.5, 0.5, 0.5, 0.0];
+            }
+        }
+        (geo, grid)
+    }
+
     #[test]
     fn the_settings_text_names_grow_only_when_set() {
         let mut v = VisibilitySettings::default();
@@ -711,28 +738,9 @@ mod tests {
     #[test]
     fn a_transparent_texel_comes_only_where_the_photos_show_it() {
         let p = 2;
-        // Quad 0 (dark, f₀ = 0.1) transparent in front of quad 1 (light,
-        // f₀ = 0.9), far apart in the lattice so their vertices are their
-        // own.
-        let mut geo = Geometry {
-            cube: Aabb {
-                min: Vec3::ZERO,
-                max: Vec3::ONE,
-            },
-            voxel: 0.25,
-            shell_voxels: 2,
-            full_voxels: 0,
-            quads: vec![quad(0.0, 0.1), quad(0.7, 0.9)],
-            opacity: vec![false, false, false, false, true, true, true, true],
-        };
-        let points: Vec<Vec3> = (0..8).map(|t| geo.texel_point(p, t)).collect();
-        let mut grid = FeatureGrid::new(&geo.cube, 4, &points);
-        for (t, x) in points.iter().enumerate() {
-            let f0 = if t < 4 { 0.1 } else { 0.9 };
-            for &s in &grid.taps(*x).unwrap().slot {
-                grid.values[s as usize] = [f0, 0.5, 0.5, 0.0, 0.5, 0.5, 0.5, 0.0];
-            }
-        }
+        // Quad 0 transparent in front of quad 1.
+        let (mut geo, grid) =
+            dark_before_light(vec![false, false, false, false, true, true, true, true]);
         let (dark, light) = ([0.02f32; 3], [0.98f32; 3]);
         let one = |t: u32| [t, NO_TEXEL, NO_TEXEL, NO_TEXEL];
         let px = |front: u32, nearer: u32, target: [f32; 3], cov: u8| PeelPixel {
@@ -774,27 +782,7 @@ mod tests {
     #[test]
     fn a_texel_goes_only_where_what_lies_behind_it_matches_the_photos_better() {
         let p = 2;
-        // Quad 0 (dark, f₀ = 0.1) in front of quad 1 (light, f₀ = 0.9), far
-        // apart in the lattice so their vertices are their own.
-        let mut geo = Geometry {
-            cube: Aabb {
-                min: Vec3::ZERO,
-                max: Vec3::ONE,
-            },
-            voxel: 0.25,
-            shell_voxels: 2,
-            full_voxels: 0,
-            quads: vec![quad(0.0, 0.1), quad(0.7, 0.9)],
-            opacity: vec![true; 8],
-        };
-        let points: Vec<Vec3> = (0..8).map(|t| geo.texel_point(p, t)).collect();
-        let mut grid = FeatureGrid::new(&geo.cube, 4, &points);
-        for (t, x) in points.iter().enumerate() {
-            let f0 = if t < 4 { 0.1 } else { 0.9 };
-            for &s in &grid.taps(*x).unwrap().slot {
-                grid.values[s as usize] = [f0, 0.5, 0.5, 0.0, 0.5, 0.5, 0.5, 0.0];
-            }
-        }
+        let (mut geo, grid) = dark_before_light(vec![true; 8]);
         let mlp = mlp();
         let every = [PeelPixel {
             front: [0, 1, 2, 3],
