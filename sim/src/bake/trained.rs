@@ -318,6 +318,12 @@ impl TrainedParams {
                     "--visibility-grow {m} must be a finite number ≥ 0"
                 )));
             }
+            // Growing happens in the rounds: without one it would do nothing.
+            if v.rounds == 0 {
+                return Err(BakeError::BadParam(
+                    "--visibility-grow needs at least one visibility round (--visibility-rounds ≥ 1; the mesh has none by default)".into(),
+                ));
+            }
         }
         let lr = self.finetune.lr_features;
         if !(lr.is_finite() && lr > 0.0 && lr <= 1.0) {
@@ -872,7 +878,7 @@ mod tests {
     #[test]
     fn bad_settings_name_their_flag() {
         assert!(TrainedParams::new(32, 5).validate().is_ok());
-        let bad: [Spoil; 21] = [
+        let bad: [Spoil; 22] = [
             ("--surface-keep", |p| p.surface.keep = f32::NAN),
             ("--surface-close", |p| p.close = 9),
             ("--surface-grow", |p| p.surface.grow = 2.0),
@@ -894,6 +900,10 @@ mod tests {
             ("--visibility-grow", |p| p.visibility.grow = Some(-1.0)),
             ("--visibility-grow", |p| {
                 p.visibility.grow = Some(f32::INFINITY)
+            }),
+            ("--visibility-grow", |p| {
+                p.visibility.grow = Some(0.4);
+                p.visibility.rounds = 0;
             }),
             ("--surface mesh", |p| {
                 p.geometry = GeometryKind::Mesh;
