@@ -3,7 +3,9 @@
 #   results/bake/trained/samples-v6.csv         lego + chair at 800 × 800 (90 training views), baker version 6
 #                                               (session 23; samples.csv is session 20's version-5 sweep),
 #                                               g {16…256} × p {5…17}, `nerflex bake --sweep --field …`
-#   results/bake/trained/samples-mesh-v6.csv    the same sweep with `--surface mesh` (session 24, version 6;
+#   results/bake/trained/samples-mesh-v6-radius2.csv  the same sweep with `--surface mesh` (session 25: version 6 with
+#                                               the mesh's hull radius of 2 px; samples-mesh-v6.csv is session 24's
+#                                               at 1 px, the regression;
 #                                               samples-mesh.csv is session 15's)
 #   results/bake/trained/samples-eval-paper.csv the paper-scale evaluation's profiler samples
 #                                               (Scenes 1–4 + real, 9 per network, from results/eval/eval.json)
@@ -14,7 +16,7 @@ cd "$(dirname "$0")/../../.."
 N=${1:-target/release/nerflex}
 S=results/bake/trained/samples-v6.csv
 E=results/bake/trained/samples-eval-paper.csv
-M=results/bake/trained/samples-mesh-v6.csv
+M=results/bake/trained/samples-mesh-v6-radius2.csv
 O=results/profile/trained
 "$N" profile fit --samples $S --out $O/profiles.json > /dev/null
 "$N" profile fit --samples $E --out $O/profiles-eval-paper.json > /dev/null

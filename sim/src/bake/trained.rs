@@ -127,6 +127,22 @@ impl GeometryKind {
             GeometryKind::Mesh | GeometryKind::MeshFilled => 0,
         }
     }
+
+    /// The hull carve's radius, pixels ([`TrainedParams::hull_radius`]),
+    /// unless told otherwise: 1 on the planes (lego (128, 17) +0.51 dB over
+    /// the 3 × 3 window; docs/baking.md, "Session 23"), 2 on the mesh. The
+    /// mesh's vertices are means of crossings of the field's soft surface
+    /// and stray from the photos' contour by more than the planes' texels
+    /// do: at a radius of 1 the carve emptied texels across lego's front
+    /// surfaces, so training pixels saw the mesh from behind six times as
+    /// often (lego (256, 5): 26.21 dB against 29.02 at 2; docs/baking.md,
+    /// "Session 25").
+    pub fn default_hull_radius(self) -> f32 {
+        match self {
+            GeometryKind::Planes => 1.0,
+            GeometryKind::Mesh | GeometryKind::MeshFilled => 2.0,
+        }
+    }
 }
 
 /// Settings of a bake from a field.
@@ -154,7 +170,8 @@ pub struct TrainedParams {
     /// A texel is outside only where a view shows background on every
     /// pixel whose centre lies within this many pixels of its projection
     /// (`carve::Silhouettes::with_radius`; baker version 6: 1.0, before
-    /// it a whole pixel on every side of the projection's own).
+    /// it a whole pixel on every side of the projection's own; per
+    /// geometry by default, [`GeometryKind::default_hull_radius`]).
     pub hull_radius: f32,
     /// Move the quads onto the field's half-transmittance depth
     /// ([`depth::correct`]; one more G-buffer pass).
@@ -204,7 +221,7 @@ impl TrainedParams {
             sampling: sampling::FinetuneSampling::Auto,
             close: GeometryKind::Planes.default_close(),
             hull_carve: true,
-            hull_radius: 1.0,
+            hull_radius: GeometryKind::Planes.default_hull_radius(),
             geometry: GeometryKind::Planes,
             surface: extract::SurfaceSettings::default(),
             fit_samples: 65_536,

@@ -106,10 +106,12 @@ pub struct TrainedArgs {
     pub no_hull_carve: bool,
     /// The hull carve's window: a texel goes when some view shows
     /// background on every pixel whose centre lies within this many pixels
-    /// (in x and in y) of its projection; at least ½ (lego (128, 17): 1.0
-    /// is +0.51 dB over 1.5, docs/baking.md, "Session 23").
-    #[arg(long, default_value_t = 1.0)]
-    pub hull_radius: f32,
+    /// (in x and in y) of its projection; at least ½ [default: 1 on the
+    /// planes, 2 on the mesh] (lego (128, 17): 1.0 is +0.51 dB over 1.5,
+    /// docs/baking.md, "Session 23"; lego mesh (256, 5): 2 is +2.8 dB over
+    /// 1, "Session 25").
+    #[arg(long)]
+    pub hull_radius: Option<f32>,
     /// Move the quads onto the field's half-transmittance depth (one more
     /// G-buffer pass; +0.03 dB on lego, docs/baking.md).
     #[arg(long)]
@@ -194,7 +196,9 @@ impl TrainedArgs {
         };
         p.carve_rounds = self.carve_rounds;
         p.hull_carve = !self.no_hull_carve;
-        p.hull_radius = self.hull_radius;
+        p.hull_radius = self
+            .hull_radius
+            .unwrap_or(self.surface_kind.default_hull_radius());
         p.close = self
             .surface_close
             .unwrap_or(self.surface_kind.default_close());

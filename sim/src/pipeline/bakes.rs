@@ -533,6 +533,7 @@ impl BakeStore {
                     params.geometry = kind;
                     params.visibility.rounds = kind.default_visibility_rounds();
                     params.close = kind.default_close();
+                    params.hull_radius = kind.default_hull_radius();
                 }
                 Some((&t.train, params))
             }
@@ -827,7 +828,11 @@ mod tests {
         assert_eq!(p, planes, "a planes request keeps the store's settings");
         let (_, m) = store.trained_params(16, 5, Geometry::Mesh).unwrap();
         assert_eq!(m, cli_params(&["--surface", "mesh"], 16, 5));
-        assert_eq!((m.geometry, m.visibility.rounds), (GeometryKind::Mesh, 0));
+        assert_eq!(
+            (m.geometry, m.visibility.rounds, m.hull_radius),
+            (GeometryKind::Mesh, 0, 2.0)
+        );
+        assert_eq!(planes.hull_radius, 1.0);
         // Other settings of the store carry over to its mesh bakes, as the
         // same flags would with `--surface mesh`.
         let mut tuned = cli_params(&["--epochs", "1.5", "--surface-alpha", "0.1"], 16, 5);
