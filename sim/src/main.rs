@@ -40,7 +40,38 @@ enum Command {
     Eval(cli::eval::Args),
 }
 
+/// Exit status of a command whose reader closed its output early, as a
+/// shell reports a process killed by SIGPIPE (128 + 13).
+const BROKEN_PIPE_EXIT: i32 = 141;
+
+/// Output piped into a reader that stops early (`nerflex plan --json |
+/// head -1`) makes `println!` panic; end quietly as C tools do, with the
+/// status a shell gives them, and leave every other panic to the default
+/// hook.
+fn quiet_on_broken_pipe() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if is_broken_pipe(msg) {
+            std::process::exit(BROKEN_PIPE_EXIT);
+        }
+        default(info);
+    }));
+}
+
+/// Whether a panic message is `println!`'s on a closed pipe
+/// (`failed printing to stdout: Broken pipe (os error 32)`).
+fn is_broken_pipe(msg: &str) -> bool {
+    msg.starts_with("failed printing to std") && msg.contains("Broken pipe")
+}
+
 fn main() -> std::process::ExitCode {
+    quiet_on_broken_pipe();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Plan(a) => cli::plan::run(a),
@@ -61,5 +92,26 @@ fn main() -> std::process::ExitCode {
             eprintln!("error: {e:#}");
             std::process::ExitCode::FAILURE
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::is_broken_pipe;
+
+    #[test]
+    fn only_a_closed_pipe_ends_quietly() {
+        // std's message (library/std/src/io/stdio.rs, `print_to`).
+        assert!(is_broken_pipe(
+            "failed printing to stdout: Broken pipe (os error 32)"
+        ));
+        assert!(is_broken_pipe(
+            "failed printing to stderr: Broken pipe (os error 32)"
+        ));
+        assert!(!is_broken_pipe(
+            "failed printing to stdout: No space left on device (os error 28)"
+        ));
+        assert!(!is_broken_pipe("index out of bounds: Broken pipe"));
+        assert!(!is_broken_pipe(""));
     }
 }
