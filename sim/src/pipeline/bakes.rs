@@ -833,6 +833,9 @@ mod tests {
             (GeometryKind::Mesh, 0, 2.0)
         );
         assert_eq!(planes.hull_radius, 1.0);
+        // `--hull-radius` overrides either geometry's default.
+        let told = cli_params(&["--surface", "mesh", "--hull-radius", "1.5"], 16, 5);
+        assert_eq!(told.hull_radius, 1.5);
         // Other settings of the store carry over to its mesh bakes, as the
         // same flags would with `--surface mesh`.
         let mut tuned = cli_params(&["--epochs", "1.5", "--surface-alpha", "0.1"], 16, 5);
