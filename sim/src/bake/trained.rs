@@ -342,6 +342,13 @@ impl TrainedParams {
                 ));
             }
         }
+        if !(1..=visibility::MAX_BLOCK).contains(&v.block) {
+            return Err(BakeError::BadParam(format!(
+                "--visibility-block {} must lie in [1, {}] (texels per block side)",
+                v.block,
+                visibility::MAX_BLOCK
+            )));
+        }
         let lr = self.finetune.lr_features;
         if !(lr.is_finite() && lr > 0.0 && lr <= 1.0) {
             return Err(BakeError::BadParam(format!(
@@ -895,7 +902,7 @@ mod tests {
     #[test]
     fn bad_settings_name_their_flag() {
         assert!(TrainedParams::new(32, 5).validate().is_ok());
-        let bad: [Spoil; 22] = [
+        let bad: [Spoil; 24] = [
             ("--surface-keep", |p| p.surface.keep = f32::NAN),
             ("--surface-close", |p| p.close = 9),
             ("--surface-grow", |p| p.surface.grow = 2.0),
@@ -914,6 +921,8 @@ mod tests {
             ("--visibility-rounds", |p| p.visibility.rounds = 100),
             ("--visibility-margin", |p| p.visibility.margin = -0.5),
             ("--visibility-margin", |p| p.visibility.margin = f32::NAN),
+            ("--visibility-block", |p| p.visibility.block = 0),
+            ("--visibility-block", |p| p.visibility.block = 65),
             ("--visibility-grow", |p| p.visibility.grow = Some(-1.0)),
             ("--visibility-grow", |p| {
                 p.visibility.grow = Some(f32::INFINITY)

@@ -88,6 +88,13 @@ pub struct TrainedArgs {
     /// "Session 24").
     #[arg(long, value_name = "MARGIN")]
     pub visibility_grow: Option<f32>,
+    /// The visibility rounds judge texels in blocks of B × B of their patch:
+    /// a texel flips when the summed change of the shown texels of its
+    /// state in its block passes the margin (1: texel by texel). Lego
+    /// (128, 17): B = 2 +0.06 dB, with `--visibility-grow 0.4` +0.18 dB
+    /// (docs/baking.md, "Session 25").
+    #[arg(long, value_name = "B", default_value_t = 1)]
+    pub visibility_block: u32,
     /// The trained baker's quads: `planes` (per voxel, planar quads
     /// tilted onto the surface), `mesh` (one connected mesh, MobileNeRF's
     /// topology; g ≤ 512) or `mesh+planes` (the mesh, and planes in the
@@ -211,6 +218,7 @@ impl TrainedArgs {
             .unwrap_or(self.surface_kind.default_visibility_rounds());
         p.visibility.margin = self.visibility_margin;
         p.visibility.grow = self.visibility_grow;
+        p.visibility.block = self.visibility_block;
         p
     }
 }
