@@ -751,6 +751,19 @@ mod tests {
     /// Quad 0 (dark, f₀ = 0.1) in front of quad 1 (light, f₀ = 0.9), 2 × 2
     /// texels each with `opacity`, far apart in the lattice so their
     /// vertices are their own; and that lattice.
+    /// A covered one-sample pixel showing texel `front`, `behind` behind
+    /// it, nothing nearer, with photo colour `target`.
+    fn removal_pixel(front: u32, behind: u32, target: [f32; 3]) -> PeelPixel {
+        PeelPixel {
+            front: [front, NO_TEXEL, NO_TEXEL, NO_TEXEL],
+            behind: [behind, NO_TEXEL, NO_TEXEL, NO_TEXEL],
+            nearer: [NO_TEXEL; SUBSAMPLES],
+            dir: [0.0, 0.0, 1.0],
+            target,
+            cov: 255,
+        }
+    }
+
     fn dark_before_light(opacity: Vec<bool>) -> (Geometry, FeatureGrid) {
         let p = 2;
         let geo = Geometry {
@@ -854,14 +867,7 @@ mod tests {
         };
         let (dark, light) = (shade(0), shade(4));
         assert!(dark[0] < 0.1 && light[0] > 0.9, "{dark:?} {light:?}");
-        let px = |front: u32, behind: u32, target: [f32; 3]| PeelPixel {
-            front: [front, NO_TEXEL, NO_TEXEL, NO_TEXEL],
-            behind: [behind, NO_TEXEL, NO_TEXEL, NO_TEXEL],
-            nearer: [NO_TEXEL; SUBSAMPLES],
-            dir: [0.0, 0.0, 1.0],
-            target,
-            cov: 255,
-        };
+        let px = removal_pixel;
         let pixels = [
             // Texel 0: the photos show the light quad behind it: it goes.
             px(0, 4, light),
@@ -875,10 +881,8 @@ mod tests {
             px(3, 7, [0.6; 3]),
         ];
         let mut settings = VisibilitySettings {
-            rounds: 1,
             margin: 0.0,
-            grow: None,
-            block: 1,
+            ..Default::default()
         };
         let mut g = geo.clone();
         let r = prune(&mut g, p, &pixels, &grid, &mlp, false, &settings);
@@ -906,22 +910,13 @@ mod tests {
         let p = 2;
         let (geo, grid) = dark_before_light(vec![true; 8]);
         let (dark, light) = ([0.02f32; 3], [0.98f32; 3]);
-        let px = |front: u32, behind: u32, target: [f32; 3]| PeelPixel {
-            front: [front, NO_TEXEL, NO_TEXEL, NO_TEXEL],
-            behind: [behind, NO_TEXEL, NO_TEXEL, NO_TEXEL],
-            nearer: [NO_TEXEL; SUBSAMPLES],
-            dir: [0.0, 0.0, 1.0],
-            target,
-            cov: 255,
-        };
+        let px = removal_pixel;
         // Texels 0 and 1 (quad 0's block) hide the light quad the photos
         // show: each gains about 3 × 0.9² ≈ 2.5 when it goes.
         let hiding = [px(0, 4, light), px(1, 5, light)];
         let mut settings = VisibilitySettings {
-            rounds: 1,
             margin: 3.0,
-            grow: None,
-            block: 1,
+            ..Default::default()
         };
         let mut alone = geo.clone();
         let r = prune(&mut alone, p, &hiding, &grid, &mlp(), false, &settings);
