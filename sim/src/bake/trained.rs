@@ -349,6 +349,11 @@ impl TrainedParams {
                 visibility::MAX_BLOCK
             )));
         }
+        if v.block > 1 && v.rounds == 0 {
+            return Err(BakeError::BadParam(
+                "--visibility-block needs at least one visibility round (--visibility-rounds ≥ 1; the mesh has none by default)".into(),
+            ));
+        }
         let lr = self.finetune.lr_features;
         if !(lr.is_finite() && lr > 0.0 && lr <= 1.0) {
             return Err(BakeError::BadParam(format!(
@@ -902,7 +907,7 @@ mod tests {
     #[test]
     fn bad_settings_name_their_flag() {
         assert!(TrainedParams::new(32, 5).validate().is_ok());
-        let bad: [Spoil; 24] = [
+        let bad: [Spoil; 25] = [
             ("--surface-keep", |p| p.surface.keep = f32::NAN),
             ("--surface-close", |p| p.close = 9),
             ("--surface-grow", |p| p.surface.grow = 2.0),
@@ -923,6 +928,10 @@ mod tests {
             ("--visibility-margin", |p| p.visibility.margin = f32::NAN),
             ("--visibility-block", |p| p.visibility.block = 0),
             ("--visibility-block", |p| p.visibility.block = 65),
+            ("--visibility-block", |p| {
+                p.visibility.block = 2;
+                p.visibility.rounds = 0;
+            }),
             ("--visibility-grow", |p| p.visibility.grow = Some(-1.0)),
             ("--visibility-grow", |p| {
                 p.visibility.grow = Some(f32::INFINITY)

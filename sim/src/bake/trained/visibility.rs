@@ -570,16 +570,17 @@ pub fn prune(
         error_before: before,
         ..Default::default()
     };
-    let dval: Vec<f64> = delta
-        .iter()
-        .map(|d| d.load(Ordering::Relaxed) as f64 / DELTA_UNIT)
-        .collect();
-    let shown: Vec<bool> = shown.iter().map(|s| s.load(Ordering::Relaxed)).collect();
-    let judged = block_sums(&dval, &shown, &geo.opacity, p, settings.block);
-    for (t, (&d, &s)) in judged.iter().zip(&shown).enumerate() {
-        if !s {
+    let own = |t: usize| delta[t].load(Ordering::Relaxed) as f64 / DELTA_UNIT;
+    let is_shown = |t: usize| shown[t].load(Ordering::Relaxed);
+    // Texel by texel (the default) reads each texel's own sum in place:
+    // no per-texel copies of a bake's tens of millions of texels.
+    let blocks = (settings.block > 1)
+        .then(|| block_sums(delta.len(), own, is_shown, &geo.opacity, p, settings.block));
+    for t in 0..delta.len() {
+        if !is_shown(t) {
             continue;
         }
+        let d = blocks.as_ref().map_or_else(|| own(t), |b| b[t]);
         let opaque = geo.opacity[t];
         if opaque {
             report.shown_texels += 1;
@@ -599,37 +600,42 @@ pub fn prune(
                 report.added_texels += 1;
             }
             // The texel's own first-order change (its block's is shared).
-            report.error_change += dval[t];
+            report.error_change += own(t);
         }
     }
     report
 }
 
-/// Per texel, the summed error change (`delta`) of the shown texels of
-/// its own state in its `block` × `block` block of its patch (`p²` texels
-/// per quad, row-major); 0 for unshown texels. With `block` 1 it is the
-/// texel's own change.
-fn block_sums(delta: &[f64], shown: &[bool], opacity: &[bool], p: u32, block: u32) -> Vec<f64> {
+/// Per texel `t < n`, the summed error change (`delta`) of the shown
+/// texels of its own state in its `block` × `block` block of its patch
+/// (`p²` texels per quad, row-major); 0 for unshown texels. With `block` 1
+/// it is the texel's own change.
+fn block_sums(
+    n: usize,
+    delta: impl Fn(usize) -> f64 + Sync,
+    shown: impl Fn(usize) -> bool + Sync,
+    opacity: &[bool],
+    p: u32,
+    block: u32,
+) -> Vec<f64> {
     let (pu, b) = (p.max(1) as usize, block.max(1) as usize);
     let p2 = pu * pu;
-    if b == 1 {
-        return delta.to_vec();
-    }
-    (0..delta.len())
+    let n = n.min(opacity.len());
+    (0..n)
         .into_par_iter()
         .map(|t| {
-            if !shown.get(t).copied().unwrap_or(false) {
+            if !shown(t) {
                 return 0.0;
             }
             let (q, i) = (t / p2, t % p2);
             let (bx, by) = (i % pu / b * b, i / pu / b * b);
-            let state = opacity.get(t).copied();
+            let state = opacity[t];
             let mut sum = 0.0;
             for y in by..(by + b).min(pu) {
                 for x in bx..(bx + b).min(pu) {
                     let u = q * p2 + y * pu + x;
-                    if shown.get(u) == Some(&true) && opacity.get(u).copied() == state {
-                        sum += delta.get(u).copied().unwrap_or(0.0);
+                    if u < n && shown(u) && opacity[u] == state {
+                        sum += delta(u);
                     }
                 }
             }
@@ -938,8 +944,8 @@ mod tests {
         let d = [-1.0, -2.0, 4.0, 8.0, 16.0, 0.0, 0.0, 0.0];
         let shown = [true, true, true, true, true, false, false, false];
         let opacity = [true, true, false, true, true, true, true, true];
-        let sums = block_sums(&d, &shown, &opacity, 2, 2);
-        assert_eq!(sums, vec![5.0, 5.0, 4.0, 5.0, 16.0, 0.0, 0.0, 0.0]);
-        assert_eq!(block_sums(&d, &shown, &opacity, 2, 1), d.to_vec());
+        let sums = |block| block_sums(8, |t| d[t], |t| shown[t], &opacity, 2, block);
+        assert_eq!(sums(2), vec![5.0, 5.0, 4.0, 5.0, 16.0, 0.0, 0.0, 0.0]);
+        assert_eq!(sums(1), vec![-1.0, -2.0, 4.0, 8.0, 16.0, 0.0, 0.0, 0.0]);
     }
 }
