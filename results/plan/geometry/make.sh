@@ -8,7 +8,7 @@
 #    sizes and SSIM are PREDICTED by the profiles; the planner maximises the
 #    sum of predicted SSIM under the budget (sizes are file bytes, MB = 10^6).
 #    Beside each choice: the same configuration as MEASURED in the committed
-#    sweeps (results/bake/trained/samples-v6.csv, samples-mesh-v6-radius2.csv; the data the
+#    sweeps (results/bake/trained/samples-v7.csv, samples-mesh-v6-radius2.csv; the data the
 #    profiles were fitted to).
 # 3. measured.csv (with --measure): the chosen configurations at $MEASURE_BUDGETS
 #    baked afresh by the trained baker and MEASURED on 10 test views.
@@ -50,7 +50,7 @@ plan() {
 sweep() {
   awk -F, 'FNR == 1 { geo = (FILENAME ~ /mesh/) ? "mesh" : "planes"; next }
            { print $1 "," $2 "," $3 "," geo "," $4 "," $5 "," $7 "," $8 "," $9 }' \
-    $S/samples-v6.csv $S/samples-mesh-v6-radius2.csv
+    $S/samples-v7.csv $S/samples-mesh-v6-radius2.csv
 }
 sweep > /tmp/nerflex-geometry-sweep.csv
 {

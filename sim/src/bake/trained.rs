@@ -58,8 +58,10 @@ pub const MAX_DEPTH_CARVE_ROUNDS: u32 = 8;
 /// closing of the planes' texel opacity; 5: session 20's fine-tune through
 /// the renderer's supersampling where a voxel spans fewer than 4 pixels,
 /// [`sampling`]; 6: session 23's hull carve within a 1-pixel radius of a
-/// texel's projection instead of the 3 × 3 pixels around it).
-pub const TRAINED_BAKER_VERSION: u32 = 6;
+/// texel's projection instead of the 3 × 3 pixels around it; 7: session
+/// 26's visibility judged in blocks of up to a pixel,
+/// [`visibility::auto_block`]).
+pub const TRAINED_BAKER_VERSION: u32 = 7;
 
 /// The geometry a bake extracts from the field.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -342,9 +344,9 @@ impl TrainedParams {
                 ));
             }
         }
-        if !(1..=visibility::MAX_BLOCK).contains(&v.block) {
+        if v.block > visibility::MAX_BLOCK {
             return Err(BakeError::BadParam(format!(
-                "--visibility-block {} must lie in [1, {}] (texels per block side)",
+                "--visibility-block {} must lie in [0, {}] (texels per block side; 0: automatic)",
                 v.block,
                 visibility::MAX_BLOCK
             )));
@@ -508,6 +510,7 @@ pub fn bake(
     let mut geo = geo;
     let voxel_px = sampling::voxel_px(&geo.cube, views, g);
     let supersample = params.sampling.supersampled(voxel_px);
+    let visibility_settings = params.visibility.resolved(voxel_px, p);
     // Pinholes and slivers in the planes' texel opacity close first; the
     // hull carve then empties what that put outside a silhouette.
     let closed_texels = close::close(&mut geo.opacity, p, params.close);
@@ -755,7 +758,7 @@ pub fn bake(
             grid,
             &mlp,
             supersample,
-            &params.visibility,
+            &visibility_settings,
         );
         // The next G-buffers from the two layers: no third pass. Under
         // supersampling the views are rasterized anew instead: there a
@@ -784,6 +787,7 @@ pub fn bake(
             error_before: r.error_before,
             error_change: visibility.error_change + r.error_change,
             lost_subsamples: visibility.lost_subsamples + lost,
+            block: visibility_settings.block,
             unkept_behind: visibility.unkept_behind + unkept,
             peel_tiles: (
                 visibility.peel_tiles.0 + tiles.0,
@@ -907,7 +911,7 @@ mod tests {
     #[test]
     fn bad_settings_name_their_flag() {
         assert!(TrainedParams::new(32, 5).validate().is_ok());
-        let bad: [Spoil; 25] = [
+        let bad: [Spoil; 24] = [
             ("--surface-keep", |p| p.surface.keep = f32::NAN),
             ("--surface-close", |p| p.close = 9),
             ("--surface-grow", |p| p.surface.grow = 2.0),
@@ -926,7 +930,6 @@ mod tests {
             ("--visibility-rounds", |p| p.visibility.rounds = 100),
             ("--visibility-margin", |p| p.visibility.margin = -0.5),
             ("--visibility-margin", |p| p.visibility.margin = f32::NAN),
-            ("--visibility-block", |p| p.visibility.block = 0),
             ("--visibility-block", |p| p.visibility.block = 65),
             ("--visibility-block", |p| {
                 p.visibility.block = 2;

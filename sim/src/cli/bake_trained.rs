@@ -90,10 +90,12 @@ pub struct TrainedArgs {
     pub visibility_grow: Option<f32>,
     /// The visibility rounds judge texels in blocks of B × B of their patch:
     /// a texel flips when the summed change of the shown texels of its
-    /// state in its block passes the margin (1: texel by texel). Lego
-    /// (128, 17): B = 2 +0.06 dB, with `--visibility-grow 0.4` +0.18 dB
-    /// (docs/baking.md, "Session 25").
-    #[arg(long, value_name = "B", default_value_t = 1)]
+    /// state in its block passes the margin (1: texel by texel). 0
+    /// (default): automatic, the most texels per side whose block spans at
+    /// most a pixel of the training views (lego (128, 17): B = 3, +0.08 dB;
+    /// (256, 17): B = 6, +0.25 dB at 1 epoch; 1 where a texel spans more
+    /// than half a pixel; docs/baking.md, "Session 25" and "Session 26").
+    #[arg(long, value_name = "B", default_value_t = 0)]
     pub visibility_block: u32,
     /// The trained baker's quads: `planes` (per voxel, planar quads
     /// tilted onto the surface), `mesh` (one connected mesh, MobileNeRF's
@@ -361,8 +363,9 @@ pub fn bake(
     if params.visibility.rounds > 0 {
         let v = &s.visibility;
         println!(
-            "trained: visibility: {} texels made transparent, {} opaque (estimated error change {:.1} of {:.1}); last round judged {} texels and {} nearer ones over {} pixels; {} subsamples lost both layers, {} had theirs behind on an unshown quad; {} of {} tiles' layer behind redrawn by peeling; peel {:.2} s, judge {:.2} s",
-            v.removed_texels, v.added_texels, v.error_change, v.error_before, v.shown_texels, v.nearer_texels, v.pixels, v.lost_subsamples, v.unkept_behind, v.peel_tiles.1, v.peel_tiles.0, v.peel_s, v.judge_s
+            "trained: visibility: {} texels made transparent, {} opaque (estimated error change {:.1} of {:.1}) in {b} × {b} blocks; last round judged {} texels and {} nearer ones over {} pixels; {} subsamples lost both layers, {} had theirs behind on an unshown quad; {} of {} tiles' layer behind redrawn by peeling; peel {:.2} s, judge {:.2} s",
+            v.removed_texels, v.added_texels, v.error_change, v.error_before, v.shown_texels, v.nearer_texels, v.pixels, v.lost_subsamples, v.unkept_behind, v.peel_tiles.1, v.peel_tiles.0, v.peel_s, v.judge_s,
+            b = v.block
         );
     }
     println!(

@@ -84,15 +84,58 @@ pub struct VisibilitySettings {
     /// Texels per side of the blocks a patch is judged in: a texel flips
     /// when the summed change of the shown texels of its own state (opaque
     /// or transparent) in its block passes the margin, so each decision
-    /// rests on a few pixels more than one texel's (1: texel by texel).
+    /// rests on a few pixels more than one texel's (1: texel by texel;
+    /// [`AUTO_BLOCK`]: [`auto_block`] of the bake's texel size).
     pub block: u32,
 }
 
 /// Largest [`VisibilitySettings::block`].
 pub const MAX_BLOCK: u32 = 64;
 
-/// `grow` and `block` show only when set: bake store keys are the settings' debug
-/// text (`pipeline::bakes`), and bakes without it are the same as before.
+/// [`VisibilitySettings::block`] chosen per bake by [`auto_block`] (the
+/// default).
+pub const AUTO_BLOCK: u32 = 0;
+
+/// The widest an automatic block spans, pixels of the training views.
+/// Single texels far under a pixel are seen by two or three training
+/// pixels, too few to decide on; blocks up to about a pixel gain, wider
+/// ones lose (lego, 1 epoch: (256, 17) +0.22 dB at B = 3; (64, 17), a
+/// 0.6 px texel, −0.03 dB at B = 2; (128, 5) −0.12 dB at B = 2;
+/// docs/baking.md, "Session 26").
+pub const BLOCK_SPAN_PX: f32 = 1.0;
+
+/// Largest block [`auto_block`] picks.
+pub const MAX_AUTO_BLOCK: u32 = 8;
+
+/// The block side for texels `texel_px` pixels wide in the training
+/// views: the most texels per side whose block spans at most
+/// [`BLOCK_SPAN_PX`] (1 where a texel spans more than half a pixel, or its
+/// size is unknown), at most [`MAX_AUTO_BLOCK`].
+pub fn auto_block(texel_px: Option<f32>) -> u32 {
+    match texel_px {
+        Some(t) if t.is_finite() && t > 0.0 => {
+            // `as` saturates: a tiny texel gives a huge ratio, then the cap.
+            ((BLOCK_SPAN_PX / t).floor() as u32).clamp(1, MAX_AUTO_BLOCK)
+        }
+        _ => 1,
+    }
+}
+
+impl VisibilitySettings {
+    /// These settings with [`AUTO_BLOCK`] resolved for texels of a
+    /// `voxel_px`-pixel voxel's `p` × `p` patch.
+    pub fn resolved(&self, voxel_px: Option<f32>, p: u32) -> Self {
+        let mut v = *self;
+        if v.block == AUTO_BLOCK {
+            v.block = auto_block(voxel_px.map(|v| v / p.max(1) as f32));
+        }
+        v
+    }
+}
+
+/// `grow` and `block` show only when set (`block` when not automatic):
+/// bake store keys are the settings' debug text (`pipeline::bakes`), and
+/// bakes without them are keyed as before.
 impl std::fmt::Debug for VisibilitySettings {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let mut d = f.debug_struct("VisibilitySettings");
@@ -101,7 +144,7 @@ impl std::fmt::Debug for VisibilitySettings {
         if let Some(g) = self.grow {
             d.field("grow", &g);
         }
-        if self.block != 1 {
+        if self.block != AUTO_BLOCK {
             d.field("block", &self.block);
         }
         d.finish()
@@ -114,7 +157,7 @@ impl Default for VisibilitySettings {
             rounds: 1,
             margin: 0.01,
             grow: None,
-            block: 1,
+            block: AUTO_BLOCK,
         }
     }
 }
@@ -146,6 +189,8 @@ pub struct VisibilityReport {
     pub unkept_behind: u64,
     /// Tiles of the two-layer rasterizations, and those redrawn.
     pub peel_tiles: (u64, u64),
+    /// Texels per side of the blocks the rounds judged in (0: no round).
+    pub block: u32,
     /// Wall time of the two-layer rasterizations, seconds.
     pub peel_s: f64,
     /// … of the judgements and the next G-buffers.
@@ -805,6 +850,43 @@ mod tests {
         assert!(format!("{v:?}").ends_with("grow: 0.4 }"), "{v:?}");
         v.block = 2;
         assert!(format!("{v:?}").ends_with("grow: 0.4, block: 2 }"), "{v:?}");
+        v.block = 1;
+        assert!(format!("{v:?}").ends_with("grow: 0.4, block: 1 }"), "{v:?}");
+    }
+
+    #[test]
+    fn an_automatic_block_spans_at_most_a_pixel() {
+        // Lego's voxel spans 5.1 px at g = 128 and 2.6 px at g = 256.
+        let b = |voxel_px: f32, p: u32| {
+            VisibilitySettings::default()
+                .resolved(Some(voxel_px), p)
+                .block
+        };
+        assert_eq!(b(5.1, 17), 3);
+        assert_eq!(b(5.1, 13), 2);
+        assert_eq!(b(5.1, 9), 1);
+        assert_eq!(b(5.1, 5), 1);
+        assert_eq!(b(2.6, 17), 6);
+        assert_eq!(b(10.2, 17), 1);
+        // Texel-sized blocks never wider than a pixel, whatever p.
+        for p in 1..=64 {
+            for voxel_px in [0.5f32, 1.0, 2.6, 5.1, 20.0] {
+                let block = b(voxel_px, p);
+                assert!((1..=MAX_AUTO_BLOCK).contains(&block));
+                if block > 1 {
+                    assert!(block as f32 * voxel_px / p as f32 <= BLOCK_SPAN_PX * (1.0 + 1e-5));
+                }
+            }
+        }
+        // Unknown, degenerate or tiny sizes.
+        let auto = VisibilitySettings::default();
+        assert_eq!(auto.resolved(None, 17).block, 1);
+        assert_eq!(auto.resolved(Some(f32::NAN), 17).block, 1);
+        assert_eq!(auto.resolved(Some(0.0), 17).block, 1);
+        assert_eq!(auto.resolved(Some(1e-30), 17).block, MAX_AUTO_BLOCK);
+        // A block told stays.
+        let told = VisibilitySettings { block: 2, ..auto };
+        assert_eq!(told.resolved(Some(5.1), 17).block, 2);
     }
 
     #[test]
