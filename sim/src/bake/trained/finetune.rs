@@ -500,7 +500,8 @@ fn sort_by_vertex(list: &mut Vec<Entry>, tmp: &mut Vec<Entry>, base: usize, rang
         for d in 0..256 {
             count[d + 1] += count[d];
         }
-        tmp.clear();
+        // Every slot is written below: after the first pass this only
+        // matches the length (the buffers swap).
         tmp.resize(
             list.len(),
             Entry {
