@@ -37,6 +37,7 @@ pub mod init;
 pub mod net;
 pub mod nets;
 pub mod sampling;
+pub mod threshold;
 pub mod visibility;
 
 use glam::Vec3;
@@ -60,8 +61,9 @@ pub const MAX_DEPTH_CARVE_ROUNDS: u32 = 8;
 /// [`sampling`]; 6: session 23's hull carve within a 1-pixel radius of a
 /// texel's projection instead of the 3 × 3 pixels around it; 7: session
 /// 26's visibility judged in blocks of up to a pixel,
-/// [`visibility::auto_block`]).
-pub const TRAINED_BAKER_VERSION: u32 = 7;
+/// [`visibility::auto_block`]; 8: session 27's surface threshold lowered
+/// where the photos' object rays miss it, [`threshold`]).
+pub const TRAINED_BAKER_VERSION: u32 = 8;
 
 /// The geometry a bake extracts from the field.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -156,6 +158,10 @@ pub struct TrainedParams {
     pub patch: u32,
     /// Opacity over half a field cell at which a point counts as inside.
     pub surface_alpha: f32,
+    /// The share of the photos' object rays allowed to miss the inside:
+    /// where more of them peak below `surface_alpha`'s density, the
+    /// threshold comes down ([`threshold`]; 0: never).
+    pub surface_miss: f32,
     /// Rounds of dropping the quads the training views show mostly
     /// against the background (each one more G-buffer pass; 0: none).
     pub carve_rounds: u32,
@@ -215,6 +221,7 @@ impl TrainedParams {
             grid,
             patch,
             surface_alpha: 0.05,
+            surface_miss: 0.02,
             feature_res: 0,
             carve_rounds: 0,
             depth_correct: false,
@@ -240,6 +247,12 @@ impl TrainedParams {
             return Err(BakeError::BadParam(format!(
                 "surface alpha {} must be in (0, 1)",
                 self.surface_alpha
+            )));
+        }
+        if !(0.0..0.5).contains(&self.surface_miss) {
+            return Err(BakeError::BadParam(format!(
+                "--surface-miss {} must be in [0, 0.5)",
+                self.surface_miss
             )));
         }
         let sf = &self.surface;
@@ -387,6 +400,8 @@ pub struct TrainedTimes {
 /// Counts of a bake from a field.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct TrainedStats {
+    /// The surface's density threshold and its check against the photos.
+    pub threshold: threshold::ThresholdReport,
     /// Voxels the surface crosses.
     pub shell_voxels: u64,
     /// Voxels wholly inside.
@@ -505,7 +520,9 @@ pub fn bake(
     let (g, p) = (params.grid, params.patch);
     let p2 = (p * p) as usize;
     let t0 = Instant::now();
-    let surface = extract::Surface::new(field, params.surface_alpha);
+    let threshold =
+        threshold::surface_sigma(field, views, params.surface_alpha, params.surface_miss);
+    let surface = extract::Surface::with_sigma(field, threshold.sigma);
     let geo = extract_geometry(&surface, params).ok_or(BakeError::Empty)?;
     let mut geo = geo;
     let voxel_px = sampling::voxel_px(&geo.cube, views, g);
@@ -834,6 +851,7 @@ pub fn bake(
         atlas_s: (t5 - t4).as_secs_f64(),
     };
     let stats = TrainedStats {
+        threshold,
         shell_voxels: geo.shell_voxels,
         full_voxels: geo.full_voxels,
         extracted_quads: nq as u64,
@@ -911,7 +929,10 @@ mod tests {
     #[test]
     fn bad_settings_name_their_flag() {
         assert!(TrainedParams::new(32, 5).validate().is_ok());
-        let bad: [Spoil; 24] = [
+        let bad: [Spoil; 27] = [
+            ("--surface-miss", |p| p.surface_miss = 0.5),
+            ("--surface-miss", |p| p.surface_miss = -0.01),
+            ("--surface-miss", |p| p.surface_miss = f32::NAN),
             ("--surface-keep", |p| p.surface.keep = f32::NAN),
             ("--surface-close", |p| p.close = 9),
             ("--surface-grow", |p| p.surface.grow = 2.0),

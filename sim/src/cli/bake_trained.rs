@@ -54,6 +54,12 @@ pub struct TrainedArgs {
     /// a few cells; 0.05 keeps lego's surface, see docs/baking.md).
     #[arg(long, default_value_t = 0.05)]
     pub surface_alpha: f32,
+    /// The share of the photos' object pixels whose rays may miss the
+    /// inside: where more peak below --surface-alpha's density, the
+    /// threshold comes down to reach them (0: never; docs/baking.md,
+    /// "Session 27").
+    #[arg(long, default_value_t = 0.02)]
+    pub surface_miss: f32,
     /// A voxel side gets a quad when it sees this fraction of the surface
     /// its best side sees (1: one quad per voxel).
     #[arg(long, default_value_t = 0.5)]
@@ -196,6 +202,7 @@ impl TrainedArgs {
         p.depth_carve_rounds = self.depth_carve;
         p.depth_carve_margin = self.depth_carve_margin;
         p.surface_alpha = self.surface_alpha;
+        p.surface_miss = self.surface_miss;
         p.feature_res = self.feature_res;
         p.depth_correct = self.depth_correct;
         p.sampling = match (self.train_supersample, self.no_train_supersample) {
@@ -320,6 +327,23 @@ pub fn bake(
     let tb = trained::bake(field.as_ref(), views, &params)?;
     let s = &tb.stats;
     let t = &s.times;
+    let th = &s.threshold;
+    println!(
+        "trained: surface density {:.1} per unit{}; {} of {} photo object rays peak below --surface-alpha's {:.1} before they are half opaque ({:.2} s)",
+        th.sigma,
+        if th.lowered() {
+            format!(
+                " (lowered to {:.0} % of --surface-alpha's: more than --surface-miss of the rays missed it)",
+                100.0 * th.sigma / th.sigma_alpha
+            )
+        } else {
+            String::new()
+        },
+        th.below,
+        th.rays,
+        th.sigma_alpha,
+        th.seconds
+    );
     println!(
         "trained: {} shell + {} full voxels, {} quads extracted, {} dropped (seen mostly against the background), {} kept (seen by a training pixel)",
         s.shell_voxels, s.full_voxels, s.extracted_quads, s.carved_quads, s.kept_quads
@@ -390,7 +414,9 @@ fn probe(
     let t0 = std::time::Instant::now();
     let params = args.params(grid, patch);
     params.validate()?;
-    let surface = trained::extract::Surface::new(field, params.surface_alpha);
+    let th =
+        trained::threshold::surface_sigma(field, views, params.surface_alpha, params.surface_miss);
+    let surface = trained::extract::Surface::with_sigma(field, th.sigma);
     let geo = trained::extract_geometry(&surface, &params)
         .context("--probe: the field has no surface at this --surface-alpha")?;
     let pr = trained::gbuffer::probe(&surface, &geo, patch, views)?;

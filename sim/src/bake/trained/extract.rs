@@ -48,11 +48,11 @@ pub struct Surface<'a> {
 impl<'a> Surface<'a> {
     /// The surface where opacity over half a field cell reaches `alpha`.
     pub fn new(field: &'a dyn RadianceField, alpha: f32) -> Self {
-        let b = field.bounds();
-        let edge = (b.max - b.min).max_element();
-        let step = 0.5 * edge / field.resolution().max(1) as f32;
-        let alpha = alpha.clamp(1e-4, 1.0 - 1e-4);
-        let sigma = -(1.0 - alpha).ln() / step;
+        Self::with_sigma(field, super::threshold::sigma_of_alpha(field, alpha))
+    }
+
+    /// The surface where the density reaches `sigma` (per world unit).
+    pub fn with_sigma(field: &'a dyn RadianceField, sigma: f32) -> Self {
         Self {
             field,
             sigma,
