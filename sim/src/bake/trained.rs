@@ -31,6 +31,7 @@ pub mod depthcarve;
 pub mod export;
 pub mod extract;
 pub mod featgrid;
+pub mod fill;
 pub mod finetune;
 pub mod gbuffer;
 pub mod init;
@@ -62,8 +63,10 @@ pub const MAX_DEPTH_CARVE_ROUNDS: u32 = 8;
 /// texel's projection instead of the 3 × 3 pixels around it; 7: session
 /// 26's visibility judged in blocks of up to a pixel,
 /// [`visibility::auto_block`]; 8: session 27's surface threshold lowered
-/// where the photos' object rays miss it, [`threshold`]).
-pub const TRAINED_BAKER_VERSION: u32 = 8;
+/// where the photos' object rays miss it, [`threshold`]; 9: session 28's
+/// texel opacity reaching a quarter voxel beyond each slab,
+/// [`extract::SurfaceSettings::reach`]).
+pub const TRAINED_BAKER_VERSION: u32 = 9;
 
 /// The geometry a bake extracts from the field.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -212,6 +215,11 @@ pub struct TrainedParams {
     pub finetune: FinetuneSettings,
     /// Texel opacity judged against the photos ([`visibility`]).
     pub visibility: visibility::VisibilitySettings,
+    /// After the last fine-tune, every this many training views (from the
+    /// first) are rasterized at the renderer's subsamples, and the nearest
+    /// transparent texel of each subsample the photo calls object that
+    /// meets nothing opaque becomes opaque ([`fill`]; 0: off).
+    pub fill_holes: u32,
 }
 
 impl TrainedParams {
@@ -237,6 +245,7 @@ impl TrainedParams {
             fit: FitSettings::default(),
             finetune: FinetuneSettings::default(),
             visibility: visibility::VisibilitySettings::default(),
+            fill_holes: 0,
         }
     }
 
@@ -266,6 +275,12 @@ impl TrainedParams {
             return Err(BakeError::BadParam(format!(
                 "--surface-grow {} must be in [0, 0.5]",
                 sf.grow
+            )));
+        }
+        if !(0.0..1.0).contains(&sf.reach) {
+            return Err(BakeError::BadParam(format!(
+                "--surface-reach {} must be in [0, 1)",
+                sf.reach
             )));
         }
         if !(sf.depth > 0.0 && sf.depth < 1.0) {
@@ -448,6 +463,8 @@ pub struct TrainedStats {
     /// The visibility rounds (texels removed summed over rounds; the
     /// pixels and texels judged are the last round's).
     pub visibility: visibility::VisibilityReport,
+    /// The hole fill ([`TrainedParams::fill_holes`]).
+    pub fill: fill::FillReport,
     /// Stage timings.
     pub times: TrainedTimes,
 }
@@ -814,8 +831,27 @@ pub fn bake(
             judge_s: visibility.judge_s + v1.elapsed().as_secs_f64(),
         };
     }
-    let t4 = Instant::now();
     let grid = grid.ok_or(BakeError::Empty)?;
+    // Holes the renderer's subsamples find where the photos show the
+    // object, on texels the lattice reaches ([`fill`]).
+    let mut fill_report = fill::FillReport::default();
+    if params.fill_holes > 0 {
+        let (texels, mut r) = fill::find(&geo, p, views, params.fill_holes as usize)?;
+        for t in texels {
+            let (q, i) = (t as usize / p2, t % p2 as u32);
+            let reached = geo
+                .quads
+                .get(q)
+                .and_then(|quad| grid.taps(extract::texel_point(quad, p, i % p, i / p)))
+                .is_some();
+            if let (true, Some(o)) = (reached, geo.opacity.get_mut(t as usize)) {
+                r.filled_texels += u64::from(!*o);
+                *o = true;
+            }
+        }
+        fill_report = r;
+    }
+    let t4 = Instant::now();
     let (quads, opacity) = (geo.quads, geo.opacity);
     let texel_point = |t: usize| {
         let (q, i) = (t / p2, (t % p2) as u32);
@@ -847,7 +883,7 @@ pub fn bake(
         gbuffer_s: (t2 - t1).as_secs_f64(),
         init_s: (t3 - t2).as_secs_f64(),
         finetune_s: tune.as_secs_f64(),
-        visibility_s: ((t4 - t3).saturating_sub(tune)).as_secs_f64(),
+        visibility_s: ((t4 - t3).saturating_sub(tune).as_secs_f64() - fill_report.seconds).max(0.0),
         atlas_s: (t5 - t4).as_secs_f64(),
     };
     let stats = TrainedStats {
@@ -872,6 +908,7 @@ pub fn bake(
         fit_mse,
         finetune: report,
         visibility,
+        fill: fill_report,
         times,
     };
     let baked = BakedObject {
@@ -929,13 +966,16 @@ mod tests {
     #[test]
     fn bad_settings_name_their_flag() {
         assert!(TrainedParams::new(32, 5).validate().is_ok());
-        let bad: [Spoil; 27] = [
+        let bad: [Spoil; 30] = [
             ("--surface-miss", |p| p.surface_miss = 0.5),
             ("--surface-miss", |p| p.surface_miss = -0.01),
             ("--surface-miss", |p| p.surface_miss = f32::NAN),
             ("--surface-keep", |p| p.surface.keep = f32::NAN),
             ("--surface-close", |p| p.close = 9),
             ("--surface-grow", |p| p.surface.grow = 2.0),
+            ("--surface-reach", |p| p.surface.reach = 1.0),
+            ("--surface-reach", |p| p.surface.reach = -0.1),
+            ("--surface-reach", |p| p.surface.reach = f32::NAN),
             ("--surface-depth", |p| p.surface.depth = 1.0),
             ("--surface-depth", |p| p.surface.depth = f32::NAN),
             ("--carve-rounds", |p| p.carve_rounds = 1000),

@@ -60,6 +60,14 @@ pub struct TrainedArgs {
     /// "Session 27").
     #[arg(long, default_value_t = 0.02)]
     pub surface_miss: f32,
+    /// After the last fine-tune, rasterize every N-th training view at the
+    /// renderer's 2 × 2 subsamples; where a subsample of a pixel the photo
+    /// shows as object (3 px from any background) meets no opaque texel,
+    /// the nearest transparent texel on its ray becomes opaque. 0: off
+    /// (lego (128, 17): 1 is +0.09 dB for 19 s, 3 is +0.06 dB for 6 s;
+    /// docs/baking.md, "Session 28").
+    #[arg(long, default_value_t = 0, value_name = "N")]
+    pub fill_holes: u32,
     /// A voxel side gets a quad when it sees this fraction of the surface
     /// its best side sees (1: one quad per voxel).
     #[arg(long, default_value_t = 0.5)]
@@ -72,6 +80,13 @@ pub struct TrainedArgs {
     /// median depth; the default 0.2 scores best, docs/baking.md).
     #[arg(long, default_value_t = 0.2)]
     pub surface_depth: f32,
+    /// A texel is opaque when its line enters the surface within its
+    /// voxel's slab widened by this fraction of a voxel on both ends
+    /// (0: the slab alone, baker version 8): stacked planes of a sloped
+    /// surface overlap instead of opening cracks between the training
+    /// views (lego (128, 17): +0.14 dB, docs/baking.md, "Session 28").
+    #[arg(long, default_value_t = 0.25)]
+    pub surface_reach: f32,
     /// Rounds of texel opacity learnt from the photos: after a fine-tune,
     /// every shown texel whose removal lowers its pixels' error (what lies
     /// behind it shows instead) is made transparent, then the views are
@@ -203,6 +218,7 @@ impl TrainedArgs {
         p.depth_carve_margin = self.depth_carve_margin;
         p.surface_alpha = self.surface_alpha;
         p.surface_miss = self.surface_miss;
+        p.fill_holes = self.fill_holes;
         p.feature_res = self.feature_res;
         p.depth_correct = self.depth_correct;
         p.sampling = match (self.train_supersample, self.no_train_supersample) {
@@ -222,6 +238,7 @@ impl TrainedArgs {
         p.surface.keep = self.surface_keep;
         p.surface.grow = self.surface_grow;
         p.surface.depth = self.surface_depth;
+        p.surface.reach = self.surface_reach;
         p.visibility.rounds = self
             .visibility_rounds
             .unwrap_or(self.surface_kind.default_visibility_rounds());
@@ -390,6 +407,13 @@ pub fn bake(
             "trained: visibility: {} texels made transparent, {} opaque (estimated error change {:.1} of {:.1}) in {b} × {b} blocks; last round judged {} texels and {} nearer ones over {} pixels; {} subsamples lost both layers, {} had theirs behind on an unshown quad; {} of {} tiles' layer behind redrawn by peeling; peel {:.2} s, judge {:.2} s",
             v.removed_texels, v.added_texels, v.error_change, v.error_before, v.shown_texels, v.nearer_texels, v.pixels, v.lost_subsamples, v.unkept_behind, v.peel_tiles.1, v.peel_tiles.0, v.peel_s, v.judge_s,
             b = v.block
+        );
+    }
+    if params.fill_holes > 0 {
+        let f = &s.fill;
+        println!(
+            "trained: hole fill: {} subsamples of interior object pixels in {} training views met no opaque texel, {} of them a transparent one; {} texels made opaque ({:.2} s)",
+            f.open_subsamples, f.views, f.reachable, f.filled_texels, f.seconds
         );
     }
     println!(
