@@ -646,6 +646,24 @@ pub(super) fn voxel_quads(
 }
 
 #[cfg(test)]
+impl Geometry {
+    /// `quads` with `opacity` in the cube [−1, 1]³, 0.1 voxels (tests).
+    pub(crate) fn in_cube(quads: Vec<Quad>, opacity: Vec<bool>) -> Self {
+        Geometry {
+            cube: super::super::Aabb {
+                min: Vec3::splat(-1.0),
+                max: Vec3::splat(1.0),
+            },
+            voxel: 0.1,
+            shell_voxels: 0,
+            full_voxels: 0,
+            quads,
+            opacity,
+        }
+    }
+}
+
+#[cfg(test)]
 mod tests {
     use super::super::analytic::Sphere;
     use super::*;

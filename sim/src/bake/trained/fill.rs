@@ -154,7 +154,7 @@ pub fn find(
 mod tests {
     use super::*;
     use crate::bake::quads::Quad;
-    use crate::bake::{Aabb, Silhouette};
+    use crate::bake::Silhouette;
     use crate::camera::{Camera, Intrinsics};
     use glam::Vec3;
 
@@ -169,17 +169,7 @@ mod tests {
         let n = quads.len() * 9;
         let mut opacity = vec![true; n];
         opacity[4] = false;
-        Geometry {
-            cube: Aabb {
-                min: Vec3::splat(-1.0),
-                max: Vec3::splat(1.0),
-            },
-            voxel: 0.1,
-            shell_voxels: 0,
-            full_voxels: 0,
-            quads,
-            opacity,
-        }
+        Geometry::in_cube(quads, opacity)
     }
 
     fn found(geo: &Geometry, alpha: u8, stride: usize) -> (Vec<u32>, FillReport) {

@@ -730,20 +730,13 @@ mod tests {
         use crate::camera::{Camera, Intrinsics};
         let facing = Quad::facing_minus_y;
         let p = 3;
-        let geo = Geometry {
-            cube: Aabb {
-                min: Vec3::splat(-1.0),
-                max: Vec3::splat(1.0),
-            },
-            voxel: 0.1,
-            shell_voxels: 0,
-            full_voxels: 0,
-            quads: vec![
+        let geo = Geometry::in_cube(
+            vec![
                 facing(Vec3::new(0.0, -0.5, 0.0), 0.6),
                 facing(Vec3::new(0.0, 0.0, 0.0), 1.0),
             ],
-            opacity: vec![true; 18],
-        };
+            vec![true; 18],
+        );
         let k = Intrinsics::from_fov_x(0.7, 24, 24);
         let cam = Camera::look_at(Vec3::new(0.0, -4.0, 0.0), Vec3::ZERO, Vec3::Z, k);
         let image = image::RgbaImage::from_pixel(24, 24, image::Rgba([90, 140, 200, 255]));
