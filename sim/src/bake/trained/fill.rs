@@ -45,6 +45,9 @@ pub struct FillReport {
 fn interior(v: &BakeView<'_>) -> Vec<bool> {
     let (w, h) = v.image.dimensions();
     let (w, h) = (w as usize, h as usize);
+    if w == 0 || h == 0 {
+        return Vec::new();
+    }
     let r = MARGIN_PX;
     let background: Vec<bool> = (0..w * h)
         .map(|i| gbuffer::photo_at(v, (i % w) as u32, (i / w) as u32).is_none_or(|(c, _)| c < 128))
