@@ -610,7 +610,9 @@ pub(super) fn voxel_quads(
                         (true, Some(&b)) => b,
                         _ => [sample(-reach), sample(h + reach)],
                     };
-                    let wide = u64::from(below) | bits << 1 | u64::from(above) << (n + 1);
+                    // n + 2 ≤ 65 samples: wider than a u64 at m = 63.
+                    let wide =
+                        u128::from(below) | u128::from(bits) << 1 | u128::from(above) << (n + 1);
                     *o = first_entry(n + 2, positive, |d| wide >> d & 1 == 1).is_some();
                 }
             }
