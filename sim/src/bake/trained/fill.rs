@@ -84,9 +84,7 @@ pub fn find(
     let (layout, quads, pages) = gbuffer::pages_of(geo, p)?;
     let quads: Vec<&[_]> = quads.iter().map(Vec::as_slice).collect();
     let masks = gbuffer::alpha_masks(&pages)?;
-    // The transparent texels, drawn as if they were the opaque ones.
-    let inverted: Vec<bool> = geo.opacity.iter().map(|&o| !o).collect();
-    let inv_pages = gbuffer::alpha_pages(&layout, &inverted);
+    let inv_pages = gbuffer::transparent_pages(&layout, &geo.opacity);
     let inv_masks = gbuffer::alpha_masks(&inv_pages)?;
     type Seen = (Vec<u32>, u64, u64);
     let per: Vec<Result<Seen, BakeError>> = views

@@ -380,6 +380,14 @@ pub(super) fn alpha_pages(layout: &AtlasLayout, opacity: &[bool]) -> Vec<AlphaPa
         .collect()
 }
 
+/// [`alpha_pages`] of the texels `opacity` marks transparent: drawn as if
+/// they were the opaque ones, the nearest transparent texel each pixel
+/// meets (the visibility round's growing, the hole fill).
+pub(super) fn transparent_pages(layout: &AtlasLayout, opacity: &[bool]) -> Vec<AlphaPage> {
+    let inverted: Vec<bool> = opacity.iter().map(|&o| !o).collect();
+    alpha_pages(layout, &inverted)
+}
+
 /// The alpha bits of page `page` of `layout` whose texels' opacity is
 /// `opacity` (p² per quad, row-major in its cell, as `export::atlas` lays
 /// texels out).

@@ -212,14 +212,8 @@ pub fn peel(
     let (layout, quads, pages) = gbuffer::pages_of(geo, p)?;
     let quads: Vec<&[_]> = quads.iter().map(Vec::as_slice).collect();
     let masks = gbuffer::alpha_masks(&pages)?;
-    // The transparent texels, drawn as if they were the opaque ones.
-    let inverted: Vec<bool> = if grow {
-        geo.opacity.iter().map(|&o| !o).collect()
-    } else {
-        Vec::new()
-    };
     let inv_pages = if grow {
-        gbuffer::alpha_pages(&layout, &inverted)
+        gbuffer::transparent_pages(&layout, &geo.opacity)
     } else {
         Vec::new()
     };
