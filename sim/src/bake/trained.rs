@@ -390,6 +390,12 @@ impl TrainedParams {
                 "--feature-lr {lr} must be in (0, 1]"
             )));
         }
+        let lr = self.finetune.lr_mlp;
+        if !(lr.is_finite() && lr > 0.0 && lr <= 1.0) {
+            return Err(BakeError::BadParam(format!(
+                "--mlp-lr {lr} must be in (0, 1]"
+            )));
+        }
         Ok(())
     }
 }
@@ -498,24 +504,97 @@ fn keep_shown(
     gb: &gbuffer::GBuffers,
     p2: usize,
 ) -> (Vec<super::quads::Quad>, Vec<bool>, Vec<u32>) {
+    use rayon::prelude::*;
     let nq = geo.quads.len();
-    let mut hits = vec![0u32; nq];
-    for i in 0..gb.pixels.len() {
-        for &t in gb.shown(i) {
-            hits[t as usize / p2] += 1;
-        }
-    }
+    // Which quads some pixel shows: one flag array per rayon job, or-ed.
+    let shown = (0..gb.pixels.len())
+        .into_par_iter()
+        .fold(
+            || vec![false; nq],
+            |mut hit, i| {
+                for &t in gb.shown(i) {
+                    hit[t as usize / p2] = true;
+                }
+                hit
+            },
+        )
+        .reduce_with(|mut a, b| {
+            a.iter_mut().zip(b).for_each(|(x, y)| *x |= y);
+            a
+        })
+        .unwrap_or_else(|| vec![false; nq]);
     let mut new_index = vec![u32::MAX; nq];
     let mut quads = Vec::new();
     let mut opacity = Vec::new();
     for q in 0..nq {
-        if hits[q] > 0 {
+        if shown[q] {
             new_index[q] = quads.len() as u32;
             quads.push(geo.quads[q]);
             opacity.extend_from_slice(&geo.opacity[q * p2..(q + 1) * p2]);
         }
     }
     (quads, opacity, new_index)
+}
+
+/// The training pixels of `gb` once the quads are renumbered by
+/// `new_index` ([`keep_shown`]), each naming its texel's slot. Slots are
+/// numbered in texel order, one per texel some pixel or subsample shows
+/// (a relabelling only: the fine-tune reads a slot's taps, never its
+/// number). Returns the pixels, each slot's texel (on `quads`) and how many
+/// pixels see their quad from behind. In parallel: on lego at 800 px this
+/// was a serial loop of about 2 s over 17.5 M pixels.
+fn train_pixels(
+    gb: &gbuffer::GBuffers,
+    quads: &[super::quads::Quad],
+    new_index: &[u32],
+    p2: usize,
+) -> (finetune::TrainPixels, Vec<u32>, u64) {
+    use rayon::prelude::*;
+    use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
+    let texel = |t: u32| new_index[t as usize / p2] as usize * p2 + t as usize % p2;
+    let unused = u32::MAX;
+    let mut slot_of: Vec<AtomicU32> = (0..quads.len() * p2)
+        .into_par_iter()
+        .map(|_| AtomicU32::new(unused))
+        .collect();
+    gb.pixels
+        .par_iter()
+        .for_each(|px| slot_of[texel(px.texel)].store(0, Relaxed));
+    gb.subsamples.par_iter().for_each(|s| {
+        for &t in s.iter().filter(|&&t| t != gbuffer::NO_TEXEL) {
+            slot_of[texel(t)].store(0, Relaxed);
+        }
+    });
+    let mut slot_texel = Vec::new();
+    for (t, s) in slot_of.iter_mut().enumerate() {
+        if *s.get_mut() != unused {
+            *s.get_mut() = slot_texel.len() as u32;
+            slot_texel.push(t as u32);
+        }
+    }
+    let slot = |t: u32| slot_of[texel(t)].load(Relaxed);
+    let pixels = finetune::TrainPixels {
+        pixels: gb
+            .pixels
+            .par_iter()
+            .map(|px| finetune::TrainPixel {
+                slot: slot(px.texel),
+                dir: px.dir,
+                target: px.target,
+            })
+            .collect(),
+        subsamples: gb
+            .subsamples
+            .par_iter()
+            .map(|s| s.map(|t| if t == gbuffer::NO_TEXEL { t } else { slot(t) }))
+            .collect(),
+    };
+    let backface = gb
+        .pixels
+        .par_iter()
+        .filter(|px| from_behind(&quads[new_index[px.texel as usize / p2] as usize], px.dir))
+        .count() as u64;
+    (pixels, slot_texel, backface)
 }
 
 /// Whether a pixel looking along `dir` sees quad `q` from behind (its
@@ -682,35 +761,9 @@ pub fn bake(
         });
 
         // One entry per texel a pixel shows: how it reads the lattice.
-        let mut slot_of = vec![u32::MAX; geo.opacity.len()];
-        let mut slot_texel: Vec<u32> = Vec::new();
-        let mut slot = |texel: u32| -> u32 {
-            let q = new_index[texel as usize / p2] as usize;
-            let t = q * p2 + texel as usize % p2;
-            if slot_of[t] == u32::MAX {
-                slot_of[t] = slot_texel.len() as u32;
-                slot_texel.push(t as u32);
-            }
-            slot_of[t]
-        };
-        pixels = finetune::TrainPixels::default();
-        backface_pixels = 0u64;
-        for (i, px) in gb.pixels.iter().enumerate() {
-            let q = &geo.quads[new_index[px.texel as usize / p2] as usize];
-            backface_pixels += u64::from(from_behind(q, px.dir));
-            pixels.pixels.push(finetune::TrainPixel {
-                slot: slot(px.texel),
-                dir: px.dir,
-                target: px.target,
-            });
-            if let Some(s) = gb.subsamples.get(i) {
-                pixels
-                    .subsamples
-                    .push(s.map(|t| if t == gbuffer::NO_TEXEL { t } else { slot(t) }));
-            }
-        }
+        let slot_texel;
+        (pixels, slot_texel, backface_pixels) = train_pixels(&gb, &geo.quads, &new_index, p2);
         drop(gb);
-        drop(slot_of);
         trained_texels = slot_texel.len() as u64;
         let taps: Vec<featgrid::Taps> = {
             use rayon::prelude::*;
@@ -966,7 +1019,7 @@ mod tests {
     #[test]
     fn bad_settings_name_their_flag() {
         assert!(TrainedParams::new(32, 5).validate().is_ok());
-        let bad: [Spoil; 30] = [
+        let bad: [Spoil; 32] = [
             ("--surface-miss", |p| p.surface_miss = 0.5),
             ("--surface-miss", |p| p.surface_miss = -0.01),
             ("--surface-miss", |p| p.surface_miss = f32::NAN),
@@ -988,6 +1041,8 @@ mod tests {
             ("--hull-radius", |p| p.hull_radius = 0.25),
             ("--hull-radius", |p| p.hull_radius = f32::NAN),
             ("--feature-lr", |p| p.finetune.lr_features = f32::NAN),
+            ("--mlp-lr", |p| p.finetune.lr_mlp = 0.0),
+            ("--mlp-lr", |p| p.finetune.lr_mlp = f32::INFINITY),
             ("--visibility-rounds", |p| p.visibility.rounds = 100),
             ("--visibility-margin", |p| p.visibility.margin = -0.5),
             ("--visibility-margin", |p| p.visibility.margin = f32::NAN),

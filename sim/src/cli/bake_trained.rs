@@ -41,6 +41,14 @@ pub struct TrainedArgs {
     /// fine-tune).
     #[arg(long, default_value_t = 0.03)]
     pub feature_lr: f32,
+    /// Adam's learning rate on the MLP's weights (decays ×0.1 over the
+    /// fine-tune).
+    #[arg(long, default_value_t = 3e-3)]
+    pub mlp_lr: f32,
+    /// Seed of the fine-tune's pixel order (its spread over seeds is the
+    /// bake's noise: docs/baking.md, "Session 29").
+    #[arg(long, default_value_t = 7)]
+    pub finetune_seed: u64,
     /// Rounds of the depth carve: texels that training rays reach in
     /// front of the field's median depth (by more than
     /// --depth-carve-margin voxels) are emptied; 0: off.
@@ -214,6 +222,8 @@ impl TrainedArgs {
         let mut p = TrainedParams::new(grid, patch);
         p.finetune.epochs = self.epochs;
         p.finetune.lr_features = self.feature_lr;
+        p.finetune.lr_mlp = self.mlp_lr;
+        p.finetune.seed = self.finetune_seed;
         p.depth_carve_rounds = self.depth_carve;
         p.depth_carve_margin = self.depth_carve_margin;
         p.surface_alpha = self.surface_alpha;
