@@ -65,8 +65,9 @@ pub const MAX_DEPTH_CARVE_ROUNDS: u32 = 8;
 /// [`visibility::auto_block`]; 8: session 27's surface threshold lowered
 /// where the photos' object rays miss it, [`threshold`]; 9: session 28's
 /// texel opacity reaching a quarter voxel beyond each slab,
-/// [`extract::SurfaceSettings::reach`]).
-pub const TRAINED_BAKER_VERSION: u32 = 9;
+/// [`extract::SurfaceSettings::reach`]; 10: session 29's feature learning
+/// rate halved to 0.015, [`finetune::FinetuneSettings`]).
+pub const TRAINED_BAKER_VERSION: u32 = 10;
 
 /// The geometry a bake extracts from the field.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

@@ -38,8 +38,10 @@ pub struct TrainedArgs {
     #[arg(long, default_value_t = 3.0)]
     pub epochs: f32,
     /// Adam's learning rate on the feature lattice (decays ×0.1 over the
-    /// fine-tune).
-    #[arg(long, default_value_t = 0.03)]
+    /// fine-tune; 0.03 until baker version 10: at 0.015 lego (128, 17)
+    /// +0.0010 SSIM at the same PSNR over three seeds, chair +0.08 dB,
+    /// docs/baking.md, "Session 29").
+    #[arg(long, default_value_t = 0.015)]
     pub feature_lr: f32,
     /// Adam's learning rate on the MLP's weights (decays ×0.1 over the
     /// fine-tune).
@@ -101,8 +103,10 @@ pub struct TrainedArgs {
     /// rasterized and fine-tuned again; `--epochs` is split over the
     /// rounds' fine-tunes [default: 1 on the planes, 0 on the mesh]. On
     /// lego (128, 17) one round gains +0.39 dB and two 0.11 dB more for
-    /// 20 s more; on the mesh a round loses (lego (256, 5): −0.16 dB), as
-    /// its quads hide little (docs/baking.md, "Session 16").
+    /// 20 s more (version 10: two rounds take lego to 30.00 dB, 1.98 below
+    /// its field, and chair +0.02 dB, for about 15 s more, "Session 29");
+    /// on the mesh a round loses (lego (256, 5): −0.16 dB), as its quads
+    /// hide little (docs/baking.md, "Session 16").
     #[arg(long)]
     pub visibility_rounds: Option<u32>,
     /// A texel goes when its removal lowers its pixels' summed squared
