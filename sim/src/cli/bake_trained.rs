@@ -104,7 +104,7 @@ pub struct TrainedArgs {
     /// rounds' fine-tunes [default: 1 on the planes, 0 on the mesh]. On
     /// lego (128, 17) one round gains +0.39 dB and two 0.11 dB more for
     /// 20 s more (version 10: two rounds take lego to 30.00 dB, 1.98 below
-    /// its field, and chair +0.02 dB, for about 15 s more, "Session 29");
+    /// its field, and chair +0.02 dB, for 12 s more, "Session 29");
     /// on the mesh a round loses (lego (256, 5): −0.16 dB), as its quads
     /// hide little (docs/baking.md, "Session 16").
     #[arg(long)]
