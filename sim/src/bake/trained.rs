@@ -488,9 +488,11 @@ pub struct TrainedBake {
 /// The feature lattice's default resolution: one cell per two pixels of
 /// the object's cube as the training views see it (the median over views
 /// of its edge in pixels at its centre's depth), in 4..=512. On lego at
-/// 800 px that is 256-odd cells; 1024 cells scored 0.3 dB lower, 256 and
-/// 512 within 0.1 dB (docs/baking.md, "Session 5"), and a 96 px capture
-/// gets a lattice its pixels can train.
+/// 800 px that is 329 cells (session 29's bakes; 256-odd in session 5);
+/// 1024 cells scored 0.3 dB lower, 256 and 512 within 0.1 dB
+/// (docs/baking.md, "Session 5"), and a 96 px capture gets a lattice its
+/// pixels can train. Coarser costs chair: 230 cells for its 287 lost
+/// 0.31 dB (session 29).
 pub fn auto_feature_res(cube: &super::Aabb, views: &[BakeView<'_>]) -> u32 {
     match sampling::cube_px(cube, views) {
         Some(px) => ((px / 2.0).round() as u32).clamp(4, 512),
