@@ -806,7 +806,11 @@ pub fn bake(
         let mut settings = params.finetune;
         settings.epochs /= (rounds + 1) as f32;
         let ft0 = Instant::now();
-        let r = finetune::finetune(&pixels, &taps, &mut grid.values, &mut mlp, &settings);
+        let psnr = finetune::PsnrAt {
+            before: round == 0,
+            after: round == rounds,
+        };
+        let r = finetune::finetune(&pixels, &taps, &mut grid.values, &mut mlp, &settings, psnr);
         tune += ft0.elapsed();
         report = if round == 0 {
             r

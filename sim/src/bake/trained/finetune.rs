@@ -680,18 +680,38 @@ fn shuffle(order: &mut Vec<u32>, scratch: &mut Vec<u32>, rng: &mut ChaCha8Rng) {
     std::mem::swap(order, scratch);
 }
 
+/// Which training PSNRs [`finetune`] measures (each reads a million
+/// pixels): the visibility rounds' fine-tunes report only the first one's
+/// before and the last one's after.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PsnrAt {
+    /// Before the first step.
+    pub before: bool,
+    /// After the last step.
+    pub after: bool,
+}
+
 /// Fine-tunes the lattice's `values` (which the shown texels read through
-/// `taps`) and `mlp` on `pixels`.
+/// `taps`) and `mlp` on `pixels`; the report's PSNRs not asked for by
+/// `psnr` are NaN.
 pub fn finetune(
     pixels: &TrainPixels,
     taps: &[Taps],
     values: &mut [[f32; FEATURES]],
     mlp: &mut MlpWeights,
     s: &FinetuneSettings,
+    psnr: PsnrAt,
 ) -> FinetuneReport {
     let t0 = Instant::now();
     let stride = (pixels.len() / 1_000_000).max(1);
-    let psnr_before = train_psnr(pixels, taps, values, mlp, stride);
+    let measure = |on: bool, values: &[[f32; FEATURES]], mlp: &MlpWeights| {
+        if on {
+            train_psnr(pixels, taps, values, mlp, stride)
+        } else {
+            f64::NAN
+        }
+    };
+    let psnr_before = measure(psnr.before, values, mlp);
     let n = pixels.len();
     let batch = s.batch.clamp(1, MAX_BATCH);
     let total = (s.epochs.max(0.0) as f64 * n as f64).round() as u64;
@@ -775,7 +795,7 @@ pub fn finetune(
                 range_step(list, tmp, used, p, p * range, vals, mom, bts, lr);
             });
     }
-    let psnr_after = train_psnr(pixels, taps, values, mlp, stride);
+    let psnr_after = measure(psnr.after, values, mlp);
     FinetuneReport {
         steps,
         pixel_steps,
