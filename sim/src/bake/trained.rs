@@ -545,7 +545,8 @@ fn keep_shown(
 /// (a relabelling only: the fine-tune reads a slot's taps, never its
 /// number). Returns the pixels, each slot's texel (on `quads`) and how many
 /// pixels see their quad from behind. In parallel: on lego at 800 px this
-/// was a serial loop of about 2 s over 17.5 M pixels.
+/// was a serial loop over 17.5 M pixels, most of the 2 s of main-thread
+/// samples a profile put in [`bake`] itself (docs/baking.md, "Session 29").
 fn train_pixels(
     gb: &gbuffer::GBuffers,
     quads: &[super::quads::Quad],
