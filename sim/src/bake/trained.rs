@@ -391,6 +391,12 @@ impl TrainedParams {
                 "--feature-lr {lr} must be in (0, 1]"
             )));
         }
+        let share = v.tune_share;
+        if !(share.is_finite() && share > 0.0 && share <= 1.0) {
+            return Err(BakeError::BadParam(format!(
+                "--visibility-tune-share {share} must be in (0, 1]"
+            )));
+        }
         let lr = self.finetune.lr_mlp;
         if !(lr.is_finite() && lr > 0.0 && lr <= 1.0) {
             return Err(BakeError::BadParam(format!(
@@ -805,7 +811,12 @@ pub fn bake(
 
         // The fine-tune's epochs split over the rounds.
         let mut settings = params.finetune;
-        settings.epochs /= (rounds + 1) as f32;
+        settings.epochs = visibility::round_epochs(
+            params.finetune.epochs,
+            rounds,
+            params.visibility.tune_share,
+            round,
+        );
         let ft0 = Instant::now();
         let psnr = finetune::PsnrAt {
             before: round == 0,
@@ -1027,7 +1038,7 @@ mod tests {
     #[test]
     fn bad_settings_name_their_flag() {
         assert!(TrainedParams::new(32, 5).validate().is_ok());
-        let bad: [Spoil; 32] = [
+        let bad: [Spoil; 34] = [
             ("--surface-miss", |p| p.surface_miss = 0.5),
             ("--surface-miss", |p| p.surface_miss = -0.01),
             ("--surface-miss", |p| p.surface_miss = f32::NAN),
@@ -1051,6 +1062,10 @@ mod tests {
             ("--feature-lr", |p| p.finetune.lr_features = f32::NAN),
             ("--mlp-lr", |p| p.finetune.lr_mlp = 0.0),
             ("--mlp-lr", |p| p.finetune.lr_mlp = f32::INFINITY),
+            ("--visibility-tune-share", |p| p.visibility.tune_share = 0.0),
+            ("--visibility-tune-share", |p| {
+                p.visibility.tune_share = f32::NAN
+            }),
             ("--visibility-rounds", |p| p.visibility.rounds = 100),
             ("--visibility-margin", |p| p.visibility.margin = -0.5),
             ("--visibility-margin", |p| p.visibility.margin = f32::NAN),
