@@ -93,7 +93,7 @@ fn a_planes_key_is_unchanged_and_a_mesh_key_is_its_own() {
     // ... but not the planes' visibility rounds: the mesh runs its own
     // default (none), as `nerflex bake --surface mesh` does.
     let mut rounds = t.bake.clone();
-    rounds.visibility.rounds = 2;
+    rounds.visibility.rounds += 1;
     let rounds = BakeStore::with_baker(&root, Baker::trained(t.train.clone(), rounds));
     assert_ne!(rounds.key(&views, 16, 5, false), planes);
     assert_eq!(rounds.key_of(&views, 16, 5, Geometry::Mesh, false), mesh);

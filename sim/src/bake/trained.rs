@@ -66,8 +66,11 @@ pub const MAX_DEPTH_CARVE_ROUNDS: u32 = 8;
 /// where the photos' object rays miss it, [`threshold`]; 9: session 28's
 /// texel opacity reaching a quarter voxel beyond each slab,
 /// [`extract::SurfaceSettings::reach`]; 10: session 29's feature learning
-/// rate halved to 0.015, [`finetune::FinetuneSettings`]).
-pub const TRAINED_BAKER_VERSION: u32 = 10;
+/// rate halved to 0.015, [`finetune::FinetuneSettings`]; 11: session 30's
+/// two visibility rounds on the planes, the earlier fine-tunes a quarter
+/// of the last one's, over 2.5 epochs instead of 3,
+/// [`visibility::round_epochs`]).
+pub const TRAINED_BAKER_VERSION: u32 = 11;
 
 /// The geometry a bake extracts from the field.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

@@ -34,8 +34,9 @@ pub struct TrainedArgs {
     /// (from its `scene.json`; a stand-in with known geometry).
     #[arg(long)]
     pub field: Option<PathBuf>,
-    /// Fine-tune passes over the training pixels.
-    #[arg(long, default_value_t = 3.0)]
+    /// Fine-tune passes over the training pixels, split over the
+    /// visibility rounds' fine-tunes (3 until baker version 11).
+    #[arg(long, default_value_t = 2.5)]
     pub epochs: f32,
     /// Adam's learning rate on the feature lattice (decays ×0.1 over the
     /// fine-tune; 0.03 until baker version 10: at 0.015 lego (128, 17)
@@ -101,10 +102,13 @@ pub struct TrainedArgs {
     /// every shown texel whose removal lowers its pixels' error (what lies
     /// behind it shows instead) is made transparent, then the views are
     /// rasterized and fine-tuned again; `--epochs` is split over the
-    /// rounds' fine-tunes [default: 1 on the planes, 0 on the mesh]. On
-    /// lego (128, 17) one round gains +0.39 dB and two 0.11 dB more for
-    /// 20 s more (version 10: two rounds take lego to 30.00 dB, 1.98 below
-    /// its field, and chair +0.02 dB, for 12 s more, "Session 29");
+    /// rounds' fine-tunes [default: 2 on the planes, 0 on the mesh; 1
+    /// until baker version 11]. On lego (128, 17) one round gains +0.39
+    /// dB and two 0.11 dB more for 20 s more (version 10: two rounds take
+    /// lego to 30.00 dB, 1.98 below its field, and chair +0.02 dB, for 12 s
+    /// more, "Session 29"; with --visibility-tune-share 0.25 and 2.5
+    /// epochs, version 11's default, 30.02 dB over three seeds, "Session
+    /// 30");
     /// on the mesh a round loses (lego (256, 5): −0.16 dB), as its quads
     /// hide little (docs/baking.md, "Session 16").
     #[arg(long)]
@@ -131,12 +135,12 @@ pub struct TrainedArgs {
     #[arg(long, value_name = "B", default_value_t = 0)]
     pub visibility_block: u32,
     /// Each visibility round's fine-tune before the last takes this share
-    /// of the last one's epochs (1: `--epochs` split evenly). Lego (128,
-    /// 17) with `--visibility-rounds 2 --epochs 2.5 --visibility-tune-share
-    /// 0.25`: 29.99 dB, 1.99 below its field, in 56.1 s (one run, one
-    /// seed; the same split by a temporary switch: 30.02 dB, 57.7 s against
-    /// the default's 50.5 s paired; docs/baking.md, "Session 29").
-    #[arg(long, value_name = "S", default_value_t = 1.0)]
+    /// of the last one's epochs (1: `--epochs` split evenly, the default
+    /// until baker version 11). Lego (128, 17), two rounds of 2.5 epochs
+    /// at 0.25 against version 10's one round of 3 at 1: 30.02 dB against
+    /// 29.80 over seeds 7, 1 and 2, 1.96 below its field; chair −0.05 dB
+    /// (docs/baking.md, "Session 30").
+    #[arg(long, value_name = "S", default_value_t = 0.25)]
     pub visibility_tune_share: f32,
     /// The trained baker's quads: `planes` (per voxel, planar quads
     /// tilted onto the surface), `mesh` (one connected mesh, MobileNeRF's

@@ -156,7 +156,8 @@ pub struct FinetuneSettings {
 impl Default for FinetuneSettings {
     fn default() -> Self {
         Self {
-            epochs: 3.0,
+            // 3 until baker version 11, with one visibility round.
+            epochs: 2.5,
             batch: 8192,
             // 0.03 until baker version 10 (docs/baking.md, "Session 29").
             lr_features: 0.015,

@@ -175,11 +175,13 @@ impl std::fmt::Debug for VisibilitySettings {
 impl Default for VisibilitySettings {
     fn default() -> Self {
         Self {
-            rounds: 1,
+            // 1 round, 1.0 share until baker version 11 (docs/baking.md,
+            // "Session 30").
+            rounds: 2,
             margin: 0.01,
             grow: None,
             block: AUTO_BLOCK,
-            tune_share: 1.0,
+            tune_share: 0.25,
         }
     }
 }
@@ -850,10 +852,13 @@ mod tests {
 
     #[test]
     fn the_settings_text_names_grow_and_block_only_when_set() {
-        let mut v = VisibilitySettings::default();
+        let mut v = VisibilitySettings {
+            tune_share: 1.0,
+            ..Default::default()
+        };
         assert_eq!(
             format!("{v:?}"),
-            "VisibilitySettings { rounds: 1, margin: 0.01 }"
+            "VisibilitySettings { rounds: 2, margin: 0.01 }"
         );
         v.grow = Some(0.4);
         assert!(format!("{v:?}").ends_with("grow: 0.4 }"), "{v:?}");
