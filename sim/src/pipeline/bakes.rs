@@ -815,6 +815,16 @@ mod tests {
         Flags::try_parse_from(argv).unwrap().trained.params(g, p)
     }
 
+    /// `nerflex bake`'s flag defaults are the library's: the CLI repeats
+    /// them as clap defaults, so a default changed in one place only (as
+    /// baker version 11's rounds, share and epochs were, in both) fails here.
+    #[test]
+    fn the_cli_defaults_are_the_trained_params_defaults() {
+        for (g, p) in [(16, 5), (128, 17)] {
+            assert_eq!(cli_params(&[], g, p), TrainedParams::new(g, p));
+        }
+    }
+
     #[test]
     fn a_mesh_request_is_baked_as_nerflex_bake_surface_mesh_bakes_it() {
         // A store whose settings are `nerflex bake`'s defaults (planes).
