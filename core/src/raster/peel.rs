@@ -99,14 +99,26 @@ impl<const W: usize, const H: usize> TwoLayers<W, H> {
 
     /// Rasterizes a projected quad into both layers (depth + alpha test).
     pub fn draw<A: AlphaTest + ?Sized>(&mut self, sq: &ScreenQuad, atlas: &A) {
-        if !self.front.touches(sq) {
-            return;
-        }
         let seq = self.drawn;
         if seq == Order::MAX {
             self.undecided = true;
         }
         self.drawn = seq.saturating_add(1);
+        self.draw_at(sq, atlas, seq);
+    }
+
+    /// Rasterizes a projected quad that comes `seq`-th in the draw order
+    /// (distinct per quad), drawn now in any order: equal depths go to the
+    /// lower `seq`, so once [`TwoLayers::resolve`] has run the layers do
+    /// not depend on the order of the calls (whether it had to redraw, and
+    /// the front's counters, do). Near quads first lets most hidden
+    /// fragments skip their alpha test. Don't mix with [`TwoLayers::draw`]
+    /// in one tile, and give [`TwoLayers::resolve`] the quads in `seq`
+    /// order.
+    pub fn draw_at<A: AlphaTest + ?Sized>(&mut self, sq: &ScreenQuad, atlas: &A, seq: u32) {
+        if !self.front.touches(sq) {
+            return;
+        }
         let rect = self.front.rect();
         let Self {
             front,
@@ -129,7 +141,9 @@ impl<const W: usize, const H: usize> TwoLayers<W, H> {
                 ) else {
                     return;
                 };
-                if iw > f.inv_w {
+                // Nearer, or as near and earlier in the draw order (never
+                // both with in-order draws; `iw > 0` when `f` is empty).
+                if iw > f.inv_w || (iw == f.inv_w && seq < o[0] && iw > 0.0) {
                     let Some(px) = tri.fragment(sq, atlas, iw, l, stats) else {
                         return;
                     };
@@ -175,7 +189,7 @@ impl<const W: usize, const H: usize> TwoLayers<W, H> {
                 } else if iw.is_nan() || iw <= 0.0 {
                     // Never kept by either pass (also NaN).
                 } else if peels(f, sq.id, iw) {
-                    if iw > b.inv_w {
+                    if iw > b.inv_w || (iw == b.inv_w && seq < o[1]) {
                         if let Some(px) = tri.fragment(sq, atlas, iw, l, &mut other) {
                             *b = px;
                             o[1] = seq;

@@ -359,6 +359,28 @@ fn the_mean_texel_rounds_and_survives_empty_input() {
     assert_eq!(mean_texel(&[full, full, full, full]), full);
 }
 
+/// The two-layer properties' quads: `(plane, tilt, steps, x, x, z, z,
+/// id)` each, in planes a hair, a margin's width or far apart, some
+/// crossing; ids repeat (the peel skips the front's quad by id).
+type LayerQuad = (usize, usize, i32, u8, u8, u8, u8, u32);
+
+fn layer_quads(v: &View, quads: &[LayerQuad], n: u32) -> Vec<ScreenQuad> {
+    let ys = [0.0f32, 1e-6, 3e-5, 0.25];
+    let tilts = [0.0f32, 0.0, 0.3, -0.4];
+    let ext = |e: u8| -1.2 + 0.45 * f32::from(e);
+    quads
+        .iter()
+        .enumerate()
+        .filter_map(|(i, &(yi, ti, dz, xa, xb, za, zb, id))| {
+            let (x0, x1) = (ext(xa.min(xb)), ext(xa.max(xb)) + 0.3);
+            let (z0, z1) = (ext(za.min(zb)), ext(za.max(zb)) + 0.3);
+            let y = ys[yi] + dz as f32 * 0.125;
+            let q = tilted_quad(y, tilts[ti], x0, x1, z0, z1, n);
+            ScreenQuad::project(v, &q, (i % 2) as u16, id)
+        })
+        .collect()
+}
+
 proptest::proptest! {
     /// `span` keeps exactly the steps a per-pixel edge test keeps.
     #[test]
@@ -554,22 +576,7 @@ proptest::proptest! {
         let n = 8;
         let (f0, f1) = atlas_pages(n, |x, y| holes > 0 && (x * 7 + y * 3) % 5 < holes);
         let a = Atlas::new(n, n, &f0, &f1).unwrap();
-        // Planes a hair, a margin's width, or far apart; some crossing.
-        let ys = [0.0f32, 1e-6, 3e-5, 0.25];
-        let tilts = [0.0f32, 0.0, 0.3, -0.4];
-        let ext = |e: u8| -1.2 + 0.45 * f32::from(e);
-        let sq: Vec<ScreenQuad> = quads
-            .iter()
-            .enumerate()
-            .filter_map(|(i, &(yi, ti, dz, xa, xb, za, zb, id))| {
-                let (x0, x1) = (ext(xa.min(xb)), ext(xa.max(xb)) + 0.3);
-                let (z0, z1) = (ext(za.min(zb)), ext(za.max(zb)) + 0.3);
-                let y = ys[yi] + dz as f32 * 0.125;
-                let q = tilted_quad(y, tilts[ti], x0, x1, z0, z1, n);
-                // Repeated ids: the peel skips the front's quad by id.
-                ScreenQuad::project(&v, &q, (i % 2) as u16, id)
-            })
-            .collect();
+        let sq = layer_quads(&v, &quads, n);
         let mut front = TileRenderer::<16, 16>::new();
         let mut behind = TileRenderer::<16, 16>::new();
         let mut two = TwoLayers::<16, 16>::new();
@@ -599,6 +606,60 @@ proptest::proptest! {
             for y in 0..16 {
                 for x in 0..16 {
                     proptest::prop_assert_eq!(two.back().sample(x, y), behind.sample(x, y));
+                }
+            }
+        }
+    }
+
+    /// Drawn in any order at their places in the draw order, the layers
+    /// are the in-order ones (equal depths go to the earlier place), and
+    /// so the two passes'.
+    #[test]
+    fn two_layers_drawn_in_any_order_equal_the_in_order_draw(
+        quads in proptest::collection::vec(
+            (0usize..4, 0usize..4, -4i32..=4, 0u8..6, 0u8..6, 0u8..6, 0u8..6, 0u32..6),
+            1..14,
+        ),
+        holes in 0u32..4,
+        shuffle in proptest::prelude::any::<u64>(),
+    ) {
+        let v = view(Vec3::new(0.0, -4.0, 0.3), 24, 40.0);
+        let n = 8;
+        let (f0, f1) = atlas_pages(n, |x, y| holes > 0 && (x * 7 + y * 3) % 5 < holes);
+        let a = Atlas::new(n, n, &f0, &f1).unwrap();
+        let sq = layer_quads(&v, &quads, n);
+        // A permutation from the seed (Fisher–Yates on a 64-bit LCG);
+        // seed 0 is the reverse order.
+        let mut order: Vec<usize> = (0..sq.len()).rev().collect();
+        let mut r = shuffle;
+        for i in (1..order.len()).rev() {
+            if shuffle == 0 {
+                break;
+            }
+            r = r.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            order.swap(i, (r >> 33) as usize % (i + 1));
+        }
+        let mut in_order = TwoLayers::<16, 16>::new();
+        let mut any = TwoLayers::<16, 16>::new();
+        for (tx, ty) in [(0, 0), (16, 0), (0, 16), (16, 16)] {
+            in_order.begin(&v, tx, ty);
+            any.begin(&v, tx, ty);
+            for q in &sq {
+                in_order.draw(q, &a);
+            }
+            for &i in &order {
+                any.draw_at(&sq[i], &a, i as u32);
+            }
+            for y in 0..16 {
+                for x in 0..16 {
+                    proptest::prop_assert_eq!(any.front().sample(x, y), in_order.front().sample(x, y));
+                }
+            }
+            in_order.resolve(sq.iter().map(|q| (q, &a)));
+            any.resolve(sq.iter().map(|q| (q, &a)));
+            for y in 0..16 {
+                for x in 0..16 {
+                    proptest::prop_assert_eq!(any.back().sample(x, y), in_order.back().sample(x, y));
                 }
             }
         }

@@ -249,6 +249,8 @@ pub fn peel(
         .map(|(vi, v)| {
             let (out_view, view, ss) = gbuffer::views_of(vi, v, supersample)?;
             let binned = gbuffer::bin(&quads, &view);
+            let nearness = gbuffer::nearness(&binned.projected);
+            let mut keyed = Vec::new();
             let t = TILE as u32;
             let mut two = Box::new(TwoLayers::<TILE, TILE>::new());
             let mut near = Box::new(TileRenderer::<TILE, TILE>::new());
@@ -261,17 +263,19 @@ pub fn peel(
                 let (bx, by) = (b as u32 % binned.tx, b as u32 / binned.tx);
                 tiles.0 += 1;
                 two.begin(&view, bx * t, by * t);
-                let drawn = || {
-                    bin.iter().filter_map(|&i| {
-                        let sq = &binned.projected[i as usize];
-                        masks.get(sq.part as usize).map(|m| (sq, m))
-                    })
+                let quad = |i: u32| {
+                    let sq = binned.projected.get(i as usize)?;
+                    masks.get(sq.part as usize).map(|m| (sq, m))
                 };
-                for (sq, mask) in drawn() {
-                    two.draw(sq, mask);
+                // Nearest first, each at its place in the draw order.
+                for i in gbuffer::near_first(bin, &nearness, &mut keyed) {
+                    if let Some((sq, mask)) = quad(i) {
+                        two.draw_at(sq, mask, i);
+                    }
                 }
-                // Rare: a pixel kept too little to decide what lies behind.
-                tiles.1 += u64::from(two.resolve(drawn()));
+                // Rare: a pixel kept too little to decide what lies behind
+                // (the redraw goes in the draw order).
+                tiles.1 += u64::from(two.resolve(bin.iter().filter_map(|&i| quad(i))));
                 if grow {
                     near.begin(&view, bx * t, by * t);
                     for &i in bin {
@@ -321,9 +325,13 @@ pub fn peel(
             Ok((out, tiles))
         })
         .collect();
+    let per: Vec<ViewLayers> = per.into_iter().collect::<Result<_, _>>()?;
+    // One copy into a buffer of the final size (not a doubling one's).
     let mut all = Peel::default();
+    all.pixels
+        .reserve_exact(per.iter().map(|(r, _)| r.len()).sum());
     for r in per {
-        let (r, tiles) = r?;
+        let (r, tiles) = r;
         all.per_view.push(r.len());
         all.pixels.extend(r);
         all.tiles = (all.tiles.0 + tiles.0, all.tiles.1 + tiles.1);
@@ -396,6 +404,10 @@ impl Peel {
             })
             .collect();
         let mut g = gbuffer::GBuffers::default();
+        g.pixels
+            .reserve_exact(parts.iter().map(|p| p.0.len()).sum());
+        g.subsamples
+            .reserve_exact(parts.iter().map(|p| p.1.len()).sum());
         let mut lost = 0;
         for (pixels, subs, background, l) in parts {
             g.per_view.push(pixels.len());
