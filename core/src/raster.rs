@@ -534,6 +534,17 @@ pub struct ScreenQuad {
 }
 
 impl ScreenQuad {
+    /// The largest `1/w` of its projected corners (0 if none): its
+    /// fragments' `1/w`, interpolated between them, is at most this, up to
+    /// rounding ([`TwoLayers::hides`]).
+    pub fn nearest(&self) -> f32 {
+        self.v
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| self.valid & (1 << i) != 0)
+            .fold(0.0, |m, (_, v)| m.max(v.inv_w))
+    }
+
     /// Projects a quad; `None` if no triangle of it can touch the image.
     pub fn project(view: &View, quad: &Quad, part: u16, id: u32) -> Option<Self> {
         let mut out = ScreenQuad {

@@ -613,7 +613,8 @@ proptest::proptest! {
 
     /// Drawn in any order at their places in the draw order, the layers
     /// are the in-order ones (equal depths go to the earlier place), and
-    /// so the two passes'.
+    /// so the two passes'; so are they when the quads the layers already
+    /// hide are skipped.
     #[test]
     fn two_layers_drawn_in_any_order_equal_the_in_order_draw(
         quads in proptest::collection::vec(
@@ -641,25 +642,36 @@ proptest::proptest! {
         }
         let mut in_order = TwoLayers::<16, 16>::new();
         let mut any = TwoLayers::<16, 16>::new();
+        // … also skipping the quads the layers hide when their turn comes.
+        let mut skipping = TwoLayers::<16, 16>::new();
         for (tx, ty) in [(0, 0), (16, 0), (0, 16), (16, 16)] {
             in_order.begin(&v, tx, ty);
             any.begin(&v, tx, ty);
+            skipping.begin(&v, tx, ty);
             for q in &sq {
                 in_order.draw(q, &a);
             }
             for &i in &order {
                 any.draw_at(&sq[i], &a, i as u32);
-            }
-            for y in 0..16 {
-                for x in 0..16 {
-                    proptest::prop_assert_eq!(any.front().sample(x, y), in_order.front().sample(x, y));
+                if !skipping.hides(&sq[i], sq[i].nearest()) {
+                    skipping.draw_at(&sq[i], &a, i as u32);
                 }
             }
-            in_order.resolve(sq.iter().map(|q| (q, &a)));
-            any.resolve(sq.iter().map(|q| (q, &a)));
             for y in 0..16 {
                 for x in 0..16 {
-                    proptest::prop_assert_eq!(any.back().sample(x, y), in_order.back().sample(x, y));
+                    let f = in_order.front().sample(x, y);
+                    proptest::prop_assert_eq!(any.front().sample(x, y), f);
+                    proptest::prop_assert_eq!(skipping.front().sample(x, y), f);
+                }
+            }
+            for two in [&mut in_order, &mut any, &mut skipping] {
+                two.resolve(sq.iter().map(|q| (q, &a)));
+            }
+            for y in 0..16 {
+                for x in 0..16 {
+                    let b = in_order.back().sample(x, y);
+                    proptest::prop_assert_eq!(any.back().sample(x, y), b);
+                    proptest::prop_assert_eq!(skipping.back().sample(x, y), b);
                 }
             }
         }

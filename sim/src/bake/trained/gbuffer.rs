@@ -257,19 +257,10 @@ pub(super) fn bin(quads: &[&[RasterQuad]], view: &nerflex_core::raster::View) ->
     }
 }
 
-/// Each quad's nearest projected corner's `1/w`, as bits that sort like
-/// it (`0`: none projected): the key [`near_first`] sorts on.
+/// Each quad's [`ScreenQuad::nearest`] `1/w`, as bits that sort like it
+/// (it is never negative): the key [`near_first`] sorts on.
 pub(super) fn nearness(projected: &[ScreenQuad]) -> Vec<u32> {
-    projected
-        .iter()
-        .map(|sq| {
-            sq.v.iter()
-                .enumerate()
-                .filter(|&(i, _)| sq.valid & (1 << i) != 0)
-                .fold(0f32, |m, (_, v)| m.max(v.inv_w))
-                .to_bits()
-        })
-        .collect()
+    projected.iter().map(|sq| sq.nearest().to_bits()).collect()
 }
 
 /// A bin's quads nearest first (ties: the lower index first; `keyed` is

@@ -267,10 +267,14 @@ pub fn peel(
                     let sq = binned.projected.get(i as usize)?;
                     masks.get(sq.part as usize).map(|m| (sq, m))
                 };
-                // Nearest first, each at its place in the draw order.
+                // Nearest first, each at its place in the draw order; a
+                // quad behind both layers wherever it could cover is not
+                // drawn.
                 for i in gbuffer::near_first(bin, &nearness, &mut keyed) {
-                    if let Some((sq, mask)) = quad(i) {
-                        two.draw_at(sq, mask, i);
+                    let near = f32::from_bits(nearness.get(i as usize).copied().unwrap_or(0));
+                    match quad(i) {
+                        Some((sq, mask)) if !two.hides(sq, near) => two.draw_at(sq, mask, i),
+                        _ => {}
                     }
                 }
                 // Rare: a pixel kept too little to decide what lies behind
