@@ -37,6 +37,7 @@ pub mod gbuffer;
 pub mod init;
 pub mod net;
 pub mod nets;
+mod prefetch;
 pub mod sampling;
 pub mod threshold;
 pub mod visibility;

@@ -23,6 +23,7 @@ use std::time::Instant;
 use super::featgrid::Taps;
 use super::gbuffer::{covered, Subsamples, SUBSAMPLES};
 use super::net::{self, Adam, LaneGrads, FEATURES, LANES};
+use super::prefetch::prefetch;
 use nerflex_core::shader::MlpWeights;
 use nerflex_core::shader::{INPUTS, OUTPUTS};
 
@@ -281,26 +282,6 @@ struct ChunkInput<'a> {
     scale: f32,
     /// Vertex range of slot `v`: `v >> shift`.
     shift: u32,
-}
-
-/// Asks the CPU to bring the cache lines of `x` in (a hint, no effect on
-/// results).
-#[inline(always)]
-fn prefetch<T>(x: &T) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let p = (x as *const T).cast::<i8>();
-        // SAFETY: a prefetch never faults and `x` spans
-        // `size_of::<T>()` bytes from `p` (the last one included).
-        #[allow(unused_unsafe)]
-        unsafe {
-            _mm_prefetch::<_MM_HINT_T0>(p);
-            _mm_prefetch::<_MM_HINT_T0>(p.add(std::mem::size_of::<T>().max(1) - 1));
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = x;
 }
 
 /// How far ahead (in pixels) the gather loop asks for a pixel's record,

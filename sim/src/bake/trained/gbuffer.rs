@@ -263,19 +263,17 @@ pub(super) fn nearness(projected: &[ScreenQuad]) -> Vec<u32> {
     projected.iter().map(|sq| sq.nearest().to_bits()).collect()
 }
 
-/// A bin's quads nearest first (ties: the lower index first; `keyed` is
-/// scratch),
-/// for [`TwoLayers::draw_at`](nerflex_core::raster::TwoLayers::draw_at):
-/// drawn near first, most fragments lie behind both layers already and
-/// skip their alpha test (a lego bake's views are otherwise mostly drawn
-/// back to front: two thirds of their fragments came nearer than the
-/// front). Only the bin is sorted, not the quads: a tile then reads the
-/// same few quads' memory as in index order.
-pub(super) fn near_first<'a>(
-    bin: &[u32],
-    nearness: &[u32],
-    keyed: &'a mut Vec<u64>,
-) -> impl Iterator<Item = u32> + 'a {
+/// A bin's quads nearest first (ties: the lower index first) for
+/// [`TwoLayers::draw_at`](nerflex_core::raster::TwoLayers::draw_at), into
+/// `keyed`: each quad's `nearness` complemented in the high 32 bits, its
+/// index in the low. Drawn near first, most fragments lie behind both
+/// layers already and skip their alpha test, and whole quads can be
+/// skipped ([`TwoLayers::hides`](nerflex_core::raster::TwoLayers::hides));
+/// a lego bake's views are otherwise mostly drawn back to front (two
+/// thirds of their fragments came nearer than the front). Only the bin is
+/// sorted, not the quads: a tile reads the same quads' memory as in index
+/// order, if not in its order.
+pub(super) fn near_first(bin: &[u32], nearness: &[u32], keyed: &mut Vec<u64>) {
     // `1/w > 0`, so its bits sort as it does; complemented: nearest first.
     keyed.clear();
     keyed.extend(bin.iter().map(|&i| {
@@ -283,7 +281,6 @@ pub(super) fn near_first<'a>(
         (u64::from(!near) << 32) | u64::from(i)
     }));
     keyed.sort_unstable();
-    keyed.iter().map(|&k| k as u32)
 }
 
 /// The texel (`quad · p² + y · p + x`) tile-local sample `(x, y)` of
