@@ -534,6 +534,7 @@ fn shading(texels: &Subsamples, samples: usize, bytes: &[[u8; FEATURES]], texel:
 // Index loops: lanes and channels index several arrays at once (structure
 // of arrays), as the math reads.
 #[allow(clippy::needless_range_loop)]
+#[inline(always)]
 fn errors8(
     sh: &[Shading; LANES],
     px: &[&PeelPixel; LANES],
@@ -565,6 +566,56 @@ fn errors8(
             })
             .sum()
     })
+}
+
+/// [`errors8`] of every shading `jobs` lists (with the index of its pixel
+/// in `pixels`), into `errors`.
+#[inline(always)]
+fn job_errors(
+    jobs: &[(Shading, usize)],
+    pixels: &[PeelPixel],
+    samples: usize,
+    mlp: &MlpWeights,
+    errors: &mut [f32],
+) {
+    for (js, es) in jobs.chunks(LANES).zip(errors.chunks_mut(LANES)) {
+        let sh: [Shading; LANES] = std::array::from_fn(|l| js[l.min(js.len() - 1)].0);
+        let px: [&PeelPixel; LANES] = std::array::from_fn(|l| &pixels[js[l.min(js.len() - 1)].1]);
+        let e = errors8(&sh, &px, samples, mlp);
+        es.copy_from_slice(&e[..es.len()]);
+    }
+}
+
+/// [`job_errors`] compiled for AVX2: a lane group is one register and
+/// rounding one instruction. Rust never fuses a multiply and an add, so
+/// the results are bit for bit the same.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn job_errors_avx2(
+    jobs: &[(Shading, usize)],
+    pixels: &[PeelPixel],
+    samples: usize,
+    mlp: &MlpWeights,
+    errors: &mut [f32],
+) {
+    job_errors(jobs, pixels, samples, mlp, errors);
+}
+
+/// [`job_errors`] with the widest vectors the CPU has.
+fn job_errors_best(
+    jobs: &[(Shading, usize)],
+    pixels: &[PeelPixel],
+    samples: usize,
+    mlp: &MlpWeights,
+    errors: &mut [f32],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has the feature the function is compiled for.
+        unsafe { job_errors_avx2(jobs, pixels, samples, mlp, errors) };
+        return;
+    }
+    job_errors(jobs, pixels, samples, mlp, errors);
 }
 
 /// Fixed-point units of the per-texel error sums (exact, so their sum
@@ -634,13 +685,7 @@ pub fn prune(
                 }
             }
             let mut errors = vec![0f32; jobs.len()];
-            for (js, es) in jobs.chunks(LANES).zip(errors.chunks_mut(LANES)) {
-                let sh: [Shading; LANES] = std::array::from_fn(|l| js[l.min(js.len() - 1)].0);
-                let px: [&PeelPixel; LANES] =
-                    std::array::from_fn(|l| &chunk[js[l.min(js.len() - 1)].1]);
-                let e = errors8(&sh, &px, samples, mlp);
-                es.copy_from_slice(&e[..es.len()]);
-            }
+            job_errors_best(&jobs, chunk, samples, mlp, &mut errors);
             let mut sum = 0f64;
             let mut e0 = 0f32;
             for ((sh, _), &e) in jobs.iter().zip(&errors) {
