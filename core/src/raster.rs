@@ -780,7 +780,42 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
     /// Rasterizes a projected quad into the G-buffer (depth + alpha test);
     /// `atlas` is its part's atlas (or just its alpha test).
     pub fn draw<A: AlphaTest + ?Sized>(&mut self, sq: &ScreenQuad, atlas: &A) {
-        self.draw_over(sq, atlas, None);
+        self.draw_over(sq, atlas, None, false);
+    }
+
+    /// [`TileRenderer::draw`] of quads drawn in any order, with the
+    /// samples [`TileRenderer::draw`] gives in ascending id order: equal
+    /// depths go to the lower id (ids must be distinct; the counters
+    /// depend on the order). Near quads first lets most hidden fragments
+    /// skip their alpha test, and whole quads be skipped
+    /// ([`TileRenderer::hides`]).
+    pub fn draw_by_id<A: AlphaTest + ?Sized>(&mut self, sq: &ScreenQuad, atlas: &A) {
+        self.draw_over(sq, atlas, None, true);
+    }
+
+    /// Whether drawing `sq` now would change no sample: every pixel of its
+    /// box in this tile is already covered nearer than `nearest`, a bound
+    /// of its `1/w` ([`ScreenQuad::nearest`]; a relative 10⁻⁴ is added for
+    /// the interpolation's rounding), so all of its fragments would fail
+    /// the depth test.
+    pub fn hides(&self, sq: &ScreenQuad, nearest: f32) -> bool {
+        let bound = nearest * (1.0 + 1e-4);
+        let (x0, y0, w, h) = self.rect();
+        let [bx0, by0, bx1, by1] = sq.bbox;
+        let (cx0, cy0) = (bx0.max(x0), by0.max(y0));
+        let (cx1, cy1) = (
+            bx1.min((x0 + w).saturating_sub(1)),
+            by1.min((y0 + h).saturating_sub(1)),
+        );
+        if w == 0 || h == 0 || cx0 > cx1 || cy0 > cy1 {
+            // Off the tile: drawing it does nothing.
+            return true;
+        }
+        (cy0..=cy1).all(|y| {
+            self.g.get((y - y0) as usize).is_some_and(|row| {
+                (cx0..=cx1).all(|x| row.get((x - x0) as usize).is_some_and(|g| g.inv_w > bound))
+            })
+        })
     }
 
     /// [`TileRenderer::draw`] of the second layer (depth peeling): only
@@ -788,14 +823,17 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
     /// the same quads) shows at their pixel, and not of that quad, pass.
     /// What a pixel shows once its front texel is made transparent.
     pub fn draw_behind<A: AlphaTest + ?Sized>(&mut self, sq: &ScreenQuad, atlas: &A, front: &Self) {
-        self.draw_over(sq, atlas, Some(&front.g));
+        self.draw_over(sq, atlas, Some(&front.g), false);
     }
 
+    /// With `by_id`, equal depths go to the lower quad id instead of the
+    /// sample already there.
     fn draw_over<A: AlphaTest + ?Sized>(
         &mut self,
         sq: &ScreenQuad,
         atlas: &A,
         front: Option<&[[GPixel; W]; H]>,
+        by_id: bool,
     ) {
         if !self.touches(sq) {
             return;
@@ -814,7 +852,9 @@ impl<const W: usize, const H: usize> TileRenderer<W, H> {
                     }
                 }
                 if let Some(g) = row.get_mut(rx) {
-                    if iw > g.inv_w {
+                    // (`iw > 0` when `g` is empty, so its stale id is never
+                    // compared.)
+                    if iw > g.inv_w || (by_id && iw == g.inv_w && sq.id < g.quad && iw > 0.0) {
                         if let Some(px) = tri.fragment(sq, atlas, iw, l, stats) {
                             *g = px;
                         }

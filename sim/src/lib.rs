@@ -20,6 +20,7 @@ pub mod metrics;
 pub mod output;
 pub mod pipeline;
 pub mod plot;
+mod prefetch;
 pub mod procedural;
 pub mod render;
 pub mod scene_file;

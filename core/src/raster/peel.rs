@@ -206,30 +206,12 @@ impl<const W: usize, const H: usize> TwoLayers<W, H> {
 
     /// Whether drawing `sq` now would change neither layer: every pixel of
     /// its box in this tile already has a sample behind the front nearer
-    /// than `nearest`, a bound of its `1/w` (its nearest corner's; a
-    /// relative 10⁻⁴ is added for the interpolation's rounding), so all of
-    /// its fragments would pass behind both. Quads drawn nearest first can
+    /// than `nearest` ([`TileRenderer::hides`] of the layer behind), so
+    /// all of its fragments would pass behind both. Quads drawn nearest first can
     /// then be skipped: the layers stay those of drawing them (only the
     /// front's counters and [`TwoLayers::undecided`] may differ).
     pub fn hides(&self, sq: &ScreenQuad, nearest: f32) -> bool {
-        let bound = nearest * (1.0 + 1e-4);
-        let (x0, y0, w, h) = self.back.rect();
-        let [bx0, by0, bx1, by1] = sq.bbox;
-        let (cx0, cy0) = (bx0.max(x0), by0.max(y0));
-        let (cx1, cy1) = (
-            bx1.min((x0 + w).saturating_sub(1)),
-            by1.min((y0 + h).saturating_sub(1)),
-        );
-        if w == 0 || h == 0 || cx0 > cx1 || cy0 > cy1 {
-            // Off the tile: drawing it does nothing.
-            return true;
-        }
-        let g = &self.back.g;
-        (cy0..=cy1).all(|y| {
-            g.get((y - y0) as usize).is_some_and(|row| {
-                (cx0..=cx1).all(|x| row.get((x - x0) as usize).is_some_and(|b| b.inv_w > bound))
-            })
-        })
+        self.back.hides(sq, nearest)
     }
 
     /// Makes the back layer exact where one pass could not decide it: if

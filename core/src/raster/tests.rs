@@ -364,6 +364,23 @@ fn the_mean_texel_rounds_and_survives_empty_input() {
 /// crossing; ids repeat (the peel skips the front's quad by id).
 type LayerQuad = (usize, usize, i32, u8, u8, u8, u8, u32);
 
+/// A permutation of `0..n` from `seed` (Fisher–Yates on a 64-bit LCG);
+/// seed 0 is the reverse order.
+fn permutation(n: usize, seed: u64) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..n).rev().collect();
+    let mut r = seed;
+    for i in (1..order.len()).rev() {
+        if seed == 0 {
+            break;
+        }
+        r = r
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        order.swap(i, (r >> 33) as usize % (i + 1));
+    }
+    order
+}
+
 fn layer_quads(v: &View, quads: &[LayerQuad], n: u32) -> Vec<ScreenQuad> {
     let ys = [0.0f32, 1e-6, 3e-5, 0.25];
     let tilts = [0.0f32, 0.0, 0.3, -0.4];
@@ -611,6 +628,53 @@ proptest::proptest! {
         }
     }
 
+    /// One layer drawn in any order by id, skipping the quads it already
+    /// hides, is the in-order draw's.
+    #[test]
+    fn a_layer_drawn_by_id_in_any_order_equals_the_in_order_draw(
+        quads in proptest::collection::vec(
+            (0usize..4, 0usize..4, -4i32..=4, 0u8..6, 0u8..6, 0u8..6, 0u8..6, 0u32..1),
+            1..14,
+        ),
+        holes in 0u32..4,
+        shuffle in proptest::prelude::any::<u64>(),
+    ) {
+        let v = view(Vec3::new(0.0, -4.0, 0.3), 24, 40.0);
+        let n = 8;
+        let (f0, f1) = atlas_pages(n, |x, y| holes > 0 && (x * 7 + y * 3) % 5 < holes);
+        let a = Atlas::new(n, n, &f0, &f1).unwrap();
+        // Distinct ids in the draw order.
+        let mut sq = layer_quads(&v, &quads, n);
+        for (i, q) in sq.iter_mut().enumerate() {
+            q.id = i as u32;
+        }
+        let order = permutation(sq.len(), shuffle);
+        let mut in_order = TileRenderer::<16, 16>::new();
+        let mut any = TileRenderer::<16, 16>::new();
+        let mut skipping = TileRenderer::<16, 16>::new();
+        for (tx, ty) in [(0, 0), (16, 0), (0, 16), (16, 16)] {
+            in_order.begin(&v, tx, ty);
+            any.begin(&v, tx, ty);
+            skipping.begin(&v, tx, ty);
+            for q in &sq {
+                in_order.draw(q, &a);
+            }
+            for &i in &order {
+                any.draw_by_id(&sq[i], &a);
+                if !skipping.hides(&sq[i], sq[i].nearest()) {
+                    skipping.draw_by_id(&sq[i], &a);
+                }
+            }
+            for y in 0..16 {
+                for x in 0..16 {
+                    let f = in_order.sample(x, y);
+                    proptest::prop_assert_eq!(any.sample(x, y), f);
+                    proptest::prop_assert_eq!(skipping.sample(x, y), f);
+                }
+            }
+        }
+    }
+
     /// Drawn in any order at their places in the draw order, the layers
     /// are the in-order ones (equal depths go to the earlier place), and
     /// so the two passes'; so are they when the quads the layers already
@@ -629,17 +693,7 @@ proptest::proptest! {
         let (f0, f1) = atlas_pages(n, |x, y| holes > 0 && (x * 7 + y * 3) % 5 < holes);
         let a = Atlas::new(n, n, &f0, &f1).unwrap();
         let sq = layer_quads(&v, &quads, n);
-        // A permutation from the seed (Fisher–Yates on a 64-bit LCG);
-        // seed 0 is the reverse order.
-        let mut order: Vec<usize> = (0..sq.len()).rev().collect();
-        let mut r = shuffle;
-        for i in (1..order.len()).rev() {
-            if shuffle == 0 {
-                break;
-            }
-            r = r.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            order.swap(i, (r >> 33) as usize % (i + 1));
-        }
+        let order = permutation(sq.len(), shuffle);
         let mut in_order = TwoLayers::<16, 16>::new();
         let mut any = TwoLayers::<16, 16>::new();
         // … also skipping the quads the layers hide when their turn comes.

@@ -37,7 +37,6 @@ pub mod gbuffer;
 pub mod init;
 pub mod net;
 pub mod nets;
-mod prefetch;
 pub mod sampling;
 pub mod threshold;
 pub mod visibility;

@@ -154,17 +154,9 @@ impl Adam {
 /// Asks for the cache lines of `r` (no-op off x86-64 or for `None`).
 #[inline(always)]
 pub(super) fn prefetch<T>(r: Option<&[T]>) {
-    #[cfg(target_arch = "x86_64")]
     if let Some(r) = r {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let (p, bytes) = (r.as_ptr().cast::<i8>(), std::mem::size_of_val(r));
-        for off in (0..bytes).step_by(64).chain(bytes.checked_sub(1)) {
-            // SAFETY: a prefetch never faults; `p + off` lies in `r`.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.add(off)) };
-        }
+        crate::prefetch::prefetch(r);
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = r;
 }
 
 #[cfg(test)]

@@ -23,7 +23,7 @@ use std::time::Instant;
 use super::featgrid::Taps;
 use super::gbuffer::{covered, Subsamples, SUBSAMPLES};
 use super::net::{self, Adam, LaneGrads, FEATURES, LANES};
-use super::prefetch::prefetch;
+use crate::prefetch::prefetch;
 use nerflex_core::shader::MlpWeights;
 use nerflex_core::shader::{INPUTS, OUTPUTS};
 

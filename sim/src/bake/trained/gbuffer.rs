@@ -9,6 +9,7 @@ use rayon::prelude::*;
 use super::super::atlas::AtlasLayout;
 use super::super::{BakeError, BakeView};
 use crate::asset::Asset;
+use crate::prefetch::prefetch;
 use crate::render::{supersampled_view, view_of};
 use nerflex_core::raster::{
     AlphaBits, Quad as RasterQuad, ScreenQuad, TileRenderer, View as RasterView, SUPERSAMPLE,
@@ -110,6 +111,8 @@ fn rasterize_bits(
                 bins,
                 tx,
             } = bin(quads, &view);
+            let nearness = nearness(&projected);
+            let mut keyed = Vec::new();
             let t = TILE as u32;
             let mut tile = Box::new(TileRenderer::<TILE, TILE>::new());
             let mut out = Vec::new();
@@ -121,10 +124,14 @@ fn rasterize_bits(
                 }
                 let (bx, by) = (b as u32 % tx, b as u32 / tx);
                 tile.begin(&view, bx * t, by * t);
-                for &i in bin {
-                    let sq = &projected[i as usize];
+                // Nearest first (ids ascend with the index), the hidden
+                // quads skipped: the samples of drawing all in order.
+                for (_, sq, near) in near_first(bin, &projected, &nearness, &mut keyed) {
+                    if tile.hides(sq, near) {
+                        continue;
+                    }
                     if let Some(mask) = masks.get(sq.part as usize) {
-                        tile.draw(sq, mask);
+                        tile.draw_by_id(sq, mask);
                     }
                 }
                 let (x0, y0, w, h) = tile.rect();
@@ -263,24 +270,45 @@ pub(super) fn nearness(projected: &[ScreenQuad]) -> Vec<u32> {
     projected.iter().map(|sq| sq.nearest().to_bits()).collect()
 }
 
-/// A bin's quads nearest first (ties: the lower index first) for
-/// [`TwoLayers::draw_at`](nerflex_core::raster::TwoLayers::draw_at), into
-/// `keyed`: each quad's `nearness` complemented in the high 32 bits, its
-/// index in the low. Drawn near first, most fragments lie behind both
-/// layers already and skip their alpha test, and whole quads can be
-/// skipped ([`TwoLayers::hides`](nerflex_core::raster::TwoLayers::hides));
-/// a lego bake's views are otherwise mostly drawn back to front (two
-/// thirds of their fragments came nearer than the front). Only the bin is
-/// sorted, not the quads: a tile reads the same quads' memory as in index
-/// order, if not in its order.
-pub(super) fn near_first(bin: &[u32], nearness: &[u32], keyed: &mut Vec<u64>) {
-    // `1/w > 0`, so its bits sort as it does; complemented: nearest first.
+/// Quads ahead [`near_first`] asks the cache for.
+const PREFETCH_AHEAD: usize = 8;
+
+/// A bin's quads (indices into `projected`, each with its `nearness`)
+/// nearest first, ties to the lower index, sorted in `keyed` (scratch):
+/// for [`TwoLayers::draw_at`](nerflex_core::raster::TwoLayers::draw_at)
+/// and [`TileRenderer::draw_by_id`]. Drawn near first, most fragments lie
+/// behind what is drawn already and skip their alpha test, and whole
+/// quads can be skipped ([`TileRenderer::hides`]); a lego bake's views
+/// are otherwise mostly drawn back to front (two thirds of the two-layer
+/// draw's fragments came nearer than the front). Only the bin is sorted,
+/// not the quads, so a tile reads the same quads' memory as in index
+/// order, if not in its order: the quads a few turns ahead are
+/// prefetched.
+pub(super) fn near_first<'a>(
+    bin: &[u32],
+    projected: &'a [ScreenQuad],
+    nearness: &[u32],
+    keyed: &'a mut Vec<u64>,
+) -> impl Iterator<Item = (u32, &'a ScreenQuad, f32)> + 'a {
+    // `1/w ≥ 0`, so its bits sort as it does; complemented: nearest first.
     keyed.clear();
     keyed.extend(bin.iter().map(|&i| {
         let near = nearness.get(i as usize).copied().unwrap_or(0);
         (u64::from(!near) << 32) | u64::from(i)
     }));
     keyed.sort_unstable();
+    let keyed: &'a [u64] = keyed;
+    keyed.iter().enumerate().filter_map(move |(j, &k)| {
+        if let Some(sq) = keyed
+            .get(j + PREFETCH_AHEAD)
+            .and_then(|&a| projected.get(a as u32 as usize))
+        {
+            prefetch(sq);
+        }
+        let i = k as u32;
+        let near = f32::from_bits(!((k >> 32) as u32));
+        projected.get(i as usize).map(|sq| (i, sq, near))
+    })
 }
 
 /// The texel (`quad · p² + y · p + x`) tile-local sample `(x, y)` of

@@ -28,7 +28,6 @@ use super::extract::Geometry;
 use super::featgrid::FeatureGrid;
 use super::gbuffer::{self, Subsamples, NO_TEXEL, SUBSAMPLES, TILE};
 use super::net::{self, FEATURES, LANES};
-use super::prefetch::prefetch;
 use nerflex_core::raster::{TileRenderer, TwoLayers};
 use nerflex_core::shader::{MlpWeights, INPUTS};
 
@@ -65,9 +64,6 @@ pub struct Peel {
     /// decide and a peeling pass redrew ([`TwoLayers::resolve`]).
     pub tiles: (u64, u64),
 }
-
-/// Quads ahead the peel asks the cache for.
-const PREFETCH_AHEAD: usize = 8;
 
 /// The most visibility rounds a bake takes.
 pub const MAX_ROUNDS: u32 = 8;
@@ -274,21 +270,14 @@ pub fn peel(
                 // Nearest first, each at its place in the draw order; a
                 // quad behind both layers wherever it could cover is not
                 // drawn.
-                // That order jumps about in memory: the quads a few turns
-                // ahead are fetched early.
-                gbuffer::near_first(bin, &nearness, &mut keyed);
-                for (j, &k) in keyed.iter().enumerate() {
-                    if let Some(sq) = keyed
-                        .get(j + PREFETCH_AHEAD)
-                        .and_then(|&a| binned.projected.get(a as u32 as usize))
-                    {
-                        prefetch(sq);
+                for (i, sq, near) in
+                    gbuffer::near_first(bin, &binned.projected, &nearness, &mut keyed)
+                {
+                    if two.hides(sq, near) {
+                        continue;
                     }
-                    let i = k as u32;
-                    let near = f32::from_bits(nearness.get(i as usize).copied().unwrap_or(0));
-                    match quad(i) {
-                        Some((sq, mask)) if !two.hides(sq, near) => two.draw_at(sq, mask, i),
-                        _ => {}
+                    if let Some(mask) = masks.get(sq.part as usize) {
+                        two.draw_at(sq, mask, i);
                     }
                 }
                 // Rare: a pixel kept too little to decide what lies behind
