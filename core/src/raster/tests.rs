@@ -381,6 +381,36 @@ fn permutation(n: usize, seed: u64) -> Vec<usize> {
     order
 }
 
+/// 1 to 13 of the two-layer properties' quads, ids 0–5.
+fn layer_quad_list() -> impl proptest::strategy::Strategy<Value = Vec<LayerQuad>> {
+    proptest::collection::vec(
+        (
+            0usize..4,
+            0usize..4,
+            -4i32..=4,
+            0u8..6,
+            0u8..6,
+            0u8..6,
+            0u8..6,
+            0u32..6,
+        ),
+        1..14,
+    )
+}
+
+/// Texels per side of the two-layer properties' atlas.
+const LAYER_ATLAS: u32 = 8;
+
+/// The two-layer properties' scene: the view, the atlas pages (`holes`
+/// of every 5 texels empty) and the quads projected.
+fn layer_scene(quads: &[LayerQuad], holes: u32) -> (View, (Vec<u8>, Vec<u8>), Vec<ScreenQuad>) {
+    let v = view(Vec3::new(0.0, -4.0, 0.3), 24, 40.0);
+    let n = LAYER_ATLAS;
+    let pages = atlas_pages(n, |x, y| holes > 0 && (x * 7 + y * 3) % 5 < holes);
+    let sq = layer_quads(&v, quads, n);
+    (v, pages, sq)
+}
+
 fn layer_quads(v: &View, quads: &[LayerQuad], n: u32) -> Vec<ScreenQuad> {
     let ys = [0.0f32, 1e-6, 3e-5, 0.25];
     let tilts = [0.0f32, 0.0, 0.3, -0.4];
@@ -583,17 +613,11 @@ proptest::proptest! {
     /// crossing planes, empty texels and repeated quad ids.
     #[test]
     fn two_layers_in_one_draw_equal_the_two_passes(
-        quads in proptest::collection::vec(
-            (0usize..4, 0usize..4, -4i32..=4, 0u8..6, 0u8..6, 0u8..6, 0u8..6, 0u32..6),
-            1..14,
-        ),
+        quads in layer_quad_list(),
         holes in 0u32..4,
     ) {
-        let v = view(Vec3::new(0.0, -4.0, 0.3), 24, 40.0);
-        let n = 8;
-        let (f0, f1) = atlas_pages(n, |x, y| holes > 0 && (x * 7 + y * 3) % 5 < holes);
-        let a = Atlas::new(n, n, &f0, &f1).unwrap();
-        let sq = layer_quads(&v, &quads, n);
+        let (v, (f0, f1), sq) = layer_scene(&quads, holes);
+        let a = Atlas::new(LAYER_ATLAS, LAYER_ATLAS, &f0, &f1).unwrap();
         let mut front = TileRenderer::<16, 16>::new();
         let mut behind = TileRenderer::<16, 16>::new();
         let mut two = TwoLayers::<16, 16>::new();
@@ -632,19 +656,13 @@ proptest::proptest! {
     /// hides, is the in-order draw's.
     #[test]
     fn a_layer_drawn_by_id_in_any_order_equals_the_in_order_draw(
-        quads in proptest::collection::vec(
-            (0usize..4, 0usize..4, -4i32..=4, 0u8..6, 0u8..6, 0u8..6, 0u8..6, 0u32..1),
-            1..14,
-        ),
+        quads in layer_quad_list(),
         holes in 0u32..4,
         shuffle in proptest::prelude::any::<u64>(),
     ) {
-        let v = view(Vec3::new(0.0, -4.0, 0.3), 24, 40.0);
-        let n = 8;
-        let (f0, f1) = atlas_pages(n, |x, y| holes > 0 && (x * 7 + y * 3) % 5 < holes);
-        let a = Atlas::new(n, n, &f0, &f1).unwrap();
+        let (v, (f0, f1), mut sq) = layer_scene(&quads, holes);
+        let a = Atlas::new(LAYER_ATLAS, LAYER_ATLAS, &f0, &f1).unwrap();
         // Distinct ids in the draw order.
-        let mut sq = layer_quads(&v, &quads, n);
         for (i, q) in sq.iter_mut().enumerate() {
             q.id = i as u32;
         }
@@ -681,18 +699,12 @@ proptest::proptest! {
     /// hide are skipped.
     #[test]
     fn two_layers_drawn_in_any_order_equal_the_in_order_draw(
-        quads in proptest::collection::vec(
-            (0usize..4, 0usize..4, -4i32..=4, 0u8..6, 0u8..6, 0u8..6, 0u8..6, 0u32..6),
-            1..14,
-        ),
+        quads in layer_quad_list(),
         holes in 0u32..4,
         shuffle in proptest::prelude::any::<u64>(),
     ) {
-        let v = view(Vec3::new(0.0, -4.0, 0.3), 24, 40.0);
-        let n = 8;
-        let (f0, f1) = atlas_pages(n, |x, y| holes > 0 && (x * 7 + y * 3) % 5 < holes);
-        let a = Atlas::new(n, n, &f0, &f1).unwrap();
-        let sq = layer_quads(&v, &quads, n);
+        let (v, (f0, f1), sq) = layer_scene(&quads, holes);
+        let a = Atlas::new(LAYER_ATLAS, LAYER_ATLAS, &f0, &f1).unwrap();
         let order = permutation(sq.len(), shuffle);
         let mut in_order = TwoLayers::<16, 16>::new();
         let mut any = TwoLayers::<16, 16>::new();
