@@ -207,9 +207,10 @@ impl<const W: usize, const H: usize> TwoLayers<W, H> {
     /// Whether drawing `sq` now would change neither layer: every pixel of
     /// its box in this tile already has a sample behind the front nearer
     /// than `nearest` ([`TileRenderer::hides`] of the layer behind), so
-    /// all of its fragments would pass behind both. Quads drawn nearest first can
-    /// then be skipped: the layers stay those of drawing them (only the
-    /// front's counters and [`TwoLayers::undecided`] may differ).
+    /// all of its fragments would pass behind both. Quads drawn nearest
+    /// first can then be skipped: the layers stay those of drawing them
+    /// (only the front's counters and [`TwoLayers::undecided`] may
+    /// differ).
     pub fn hides(&self, sq: &ScreenQuad, nearest: f32) -> bool {
         self.back.hides(sq, nearest)
     }
