@@ -12,9 +12,10 @@
 #   results/bake/trained/samples-eval-paper.csv the paper-scale evaluation's profiler samples
 #                                               (Scenes 1–4 + real, 9 per network, from results/eval/eval.json)
 #                                               (written by results/bake/trained/samples-eval-paper.py)
-#   results/bake/trained/builtin/gear-*.csv     Scene 2's and 3's gear alone at the evaluation's 800 × 800 and
-#                                               50 + 12 views, from three field budgets, g {16…256} × p {5…17}
-#                                               (session 27, written by results/bake/trained/builtin/make.sh)
+#   results/bake/trained/builtin/*-*.csv        built-in objects alone at the evaluation's 800 × 800 and
+#                                               50 + 12 views, g {16…256} × p {5…17}: gear from three field
+#                                               budgets (session 27), tree from the default field (session 31)
+#                                               (written by results/bake/trained/builtin/make.sh)
 # Usage: results/profile/trained/make.sh [path/to/nerflex]
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
@@ -34,7 +35,7 @@ mkdir -p $O/mesh
 "$N" profile accuracy --samples $M --json $O/mesh/accuracy_loo.json --plots $O/mesh/curves > $O/mesh/accuracy_loo.txt
 "$N" profile accuracy --samples $M --train-on variable-step --json $O/mesh/accuracy_variable_step.json > $O/mesh/accuracy_variable_step.txt
 mkdir -p $O/builtin
-for f in results/bake/trained/builtin/gear-*.csv; do
+for f in results/bake/trained/builtin/*-*.csv; do
   b=$(basename "$f" .csv)
   "$N" profile accuracy --samples "$f" --train-on variable-step > $O/builtin/accuracy_variable_step-$b.txt
 done
