@@ -6,7 +6,8 @@
 //! by an eighth of a voxel into their neighbours, so coplanar overlaps and
 //! crossing planes are common), seen at 1600 × 1600 (the bake's 2 × 2
 //! supersampled 800 × 800 view) from two opposite sides. One core,
-//! every tile.
+//! every tile. `one_draw_near_first` is the baker's order since session
+//! 31: each tile's quads nearest first, the hidden ones skipped.
 //!
 //! `cargo bench -p nerflex-hostbench --bench peel`
 
@@ -149,6 +150,32 @@ fn bench(c: &mut Criterion) {
                 two.begin(v, *x0, *y0);
                 for q in bin {
                     two.draw(q, &atlas);
+                }
+                two.resolve(bin.iter().map(|q| (*q, &atlas)));
+                black_box(two.back().covered());
+            }
+        })
+    });
+    // The baker's order (`bake::trained::gbuffer::near_first`): each
+    // tile's quads sorted nearest first (the sort timed too), each drawn
+    // at its place in the bin's order, the hidden ones skipped.
+    let mut keyed: Vec<(u32, u32)> = Vec::new();
+    g.bench_function("one_draw_near_first", |b| {
+        b.iter(|| {
+            for (v, x0, y0, bin) in &tiles {
+                two.begin(v, *x0, *y0);
+                keyed.clear();
+                keyed.extend(
+                    bin.iter()
+                        .enumerate()
+                        .map(|(i, q)| (!q.nearest().to_bits(), i as u32)),
+                );
+                keyed.sort_unstable();
+                for &(near, i) in &keyed {
+                    let q = bin[i as usize];
+                    if !two.hides(q, f32::from_bits(!near)) {
+                        two.draw_at(q, &atlas, i);
+                    }
                 }
                 two.resolve(bin.iter().map(|q| (*q, &atlas)));
                 black_box(two.back().covered());
