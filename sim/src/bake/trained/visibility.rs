@@ -692,83 +692,95 @@ pub fn prune(
             sum
         })
         .sum();
-    let mut report = VisibilityReport {
-        pixels: pixels.len() as u64,
-        error_before: before,
-        ..Default::default()
-    };
-    let own = |t: usize| delta[t].load(Ordering::Relaxed) as f64 / DELTA_UNIT;
-    let is_shown = |t: usize| shown[t].load(Ordering::Relaxed);
-    // Texel by texel (the default) reads each texel's own sum in place:
-    // no per-texel copies of a bake's tens of millions of texels.
-    let blocks = (settings.block > 1)
-        .then(|| block_sums(delta.len(), own, is_shown, &geo.opacity, p, settings.block));
-    for t in 0..delta.len() {
-        if !is_shown(t) {
-            continue;
-        }
-        let d = blocks.as_ref().map_or_else(|| own(t), |b| b[t]);
-        let opaque = geo.opacity[t];
-        if opaque {
-            report.shown_texels += 1;
-        } else {
-            report.nearer_texels += 1;
-        }
-        let margin = if opaque {
-            settings.margin
-        } else {
-            settings.grow.unwrap_or(f32::INFINITY)
-        };
-        if d < -f64::from(margin) {
-            geo.opacity[t] = !opaque;
-            if opaque {
-                report.removed_texels += 1;
-            } else {
-                report.added_texels += 1;
-            }
-            // The texel's own first-order change (its block's is shared).
-            report.error_change += own(t);
-        }
-    }
-    report
-}
-
-/// Per texel `t < n`, the summed error change (`delta`) of the shown
-/// texels of its own state in its `block` × `block` block of its patch
-/// (`p²` texels per quad, row-major); 0 for unshown texels. With `block` 1
-/// it is the texel's own change.
-fn block_sums(
-    n: usize,
-    delta: impl Fn(usize) -> f64 + Sync,
-    shown: impl Fn(usize) -> bool + Sync,
-    opacity: &[bool],
-    p: u32,
-    block: u32,
-) -> Vec<f64> {
-    let (pu, b) = (p.max(1) as usize, block.max(1) as usize);
+    let raw = |t: usize| delta.get(t).map_or(0, |d| d.load(Ordering::Relaxed));
+    let own = |t: usize| raw(t) as f64 / DELTA_UNIT;
+    let is_shown = |t: usize| shown.get(t).is_some_and(|s| s.load(Ordering::Relaxed));
+    // Quad by quad on all cores: a block lies inside its quad's patch, so
+    // each quad decides on a copy of its own opacity as it was, exactly
+    // what judging every texel before changing any gives.
+    let (pu, b) = (p.max(1) as usize, settings.block.max(1) as usize);
     let p2 = pu * pu;
-    let n = n.min(opacity.len());
-    (0..n)
-        .into_par_iter()
-        .map(|t| {
-            if !shown(t) {
-                return 0.0;
-            }
-            let (q, i) = (t / p2, t % p2);
-            let (bx, by) = (i % pu / b * b, i / pu / b * b);
-            let state = opacity[t];
-            let mut sum = 0.0;
-            for y in by..(by + b).min(pu) {
-                for x in bx..(bx + b).min(pu) {
-                    let u = q * p2 + y * pu + x;
-                    if u < n && shown(u) && opacity[u] == state {
-                        sum += delta(u);
+    let (counts, change) = geo
+        .opacity
+        .par_chunks_mut(p2)
+        .enumerate()
+        .fold(
+            || ([0u64; 4], 0i64, Vec::new()),
+            |(mut counts, mut change, mut old), (q, patch)| {
+                old.clear();
+                old.extend_from_slice(patch);
+                let base = q * p2;
+                for (i, o) in patch.iter_mut().enumerate() {
+                    let t = base + i;
+                    if !is_shown(t) {
+                        continue;
+                    }
+                    let d = if b > 1 {
+                        block_sum(&old, base, i, pu, b, own, is_shown)
+                    } else {
+                        own(t)
+                    };
+                    let opaque = old[i];
+                    counts[usize::from(!opaque)] += 1;
+                    let margin = if opaque {
+                        settings.margin
+                    } else {
+                        settings.grow.unwrap_or(f32::INFINITY)
+                    };
+                    if d < -f64::from(margin) {
+                        *o = !opaque;
+                        counts[2 + usize::from(!opaque)] += 1;
+                        // The texel's own first-order change (its block's
+                        // is shared), summed exactly.
+                        change += raw(t);
                     }
                 }
+                (counts, change, old)
+            },
+        )
+        .map(|(counts, change, _)| (counts, change))
+        .reduce(
+            || ([0u64; 4], 0i64),
+            |(a, x), (b, y)| (std::array::from_fn(|k| a[k] + b[k]), x + y),
+        );
+    let [shown_texels, nearer_texels, removed_texels, added_texels] = counts;
+    VisibilityReport {
+        pixels: pixels.len() as u64,
+        error_before: before,
+        shown_texels,
+        nearer_texels,
+        removed_texels,
+        added_texels,
+        error_change: change as f64 / DELTA_UNIT,
+        ..Default::default()
+    }
+}
+
+/// The summed error change (`delta`, by texel) of the shown texels of the
+/// same state as texel `i` of a quad (its `p²` texels' opacity `patch`,
+/// row-major, `pu` = p per side, the first one texel `base`) in its
+/// `b` × `b` block of the patch. With `b` 1 it is the texel's own change.
+fn block_sum(
+    patch: &[bool],
+    base: usize,
+    i: usize,
+    pu: usize,
+    b: usize,
+    delta: impl Fn(usize) -> f64,
+    shown: impl Fn(usize) -> bool,
+) -> f64 {
+    let (bx, by) = (i % pu / b * b, i / pu / b * b);
+    let state = patch.get(i).copied();
+    let mut sum = 0.0;
+    for y in by..(by + b).min(pu) {
+        for x in bx..(bx + b).min(pu) {
+            let j = y * pu + x;
+            if patch.get(j).copied() == state && shown(base + j) {
+                sum += delta(base + j);
             }
-            sum
-        })
-        .collect()
+        }
+    }
+    sum
 }
 
 #[cfg(test)]
@@ -1131,7 +1143,18 @@ mod tests {
         let d = [-1.0, -2.0, 4.0, 8.0, 16.0, 0.0, 0.0, 0.0];
         let shown = [true, true, true, true, true, false, false, false];
         let opacity = [true, true, false, true, true, true, true, true];
-        let sums = |block| block_sums(8, |t| d[t], |t| shown[t], &opacity, 2, block);
+        let sums = |block| -> Vec<f64> {
+            (0..8)
+                .map(|t| {
+                    let base = t / 4 * 4;
+                    let patch = &opacity[base..base + 4];
+                    match shown[t] {
+                        true => block_sum(patch, base, t % 4, 2, block, |u| d[u], |u| shown[u]),
+                        false => 0.0,
+                    }
+                })
+                .collect()
+        };
         assert_eq!(sums(2), vec![5.0, 5.0, 4.0, 5.0, 16.0, 0.0, 0.0, 0.0]);
         assert_eq!(sums(1), vec![-1.0, -2.0, 4.0, 8.0, 16.0, 0.0, 0.0, 0.0]);
     }
