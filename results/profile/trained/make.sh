@@ -14,7 +14,7 @@
 #                                               (written by results/bake/trained/samples-eval-paper.py)
 #   results/bake/trained/builtin/*-*.csv        built-in objects alone at the evaluation's 800 × 800 and
 #                                               50 + 12 views, g {16…256} × p {5…17}: gear from three field
-#                                               budgets (session 27), tree from the default field (session 31)
+#                                               budgets (session 27), tree (session 31) and text-panel (session 32) from the default field
 #                                               (written by results/bake/trained/builtin/make.sh)
 # Usage: results/profile/trained/make.sh [path/to/nerflex]
 set -euo pipefail
