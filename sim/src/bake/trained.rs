@@ -509,12 +509,14 @@ pub fn auto_feature_res(cube: &super::Aabb, views: &[BakeView<'_>]) -> u32 {
     }
 }
 
-/// The quads of `geo` some pixel of `gb` shows, their opacity, and each
-/// quad's new index (`u32::MAX`: dropped).
+/// The quads of `geo` some pixel of `gb` shows or `extra` flags (by
+/// quad; shorter: the rest unflagged), their opacity, and each quad's new
+/// index (`u32::MAX`: dropped).
 fn keep_shown(
     geo: &extract::Geometry,
     gb: &gbuffer::GBuffers,
     p2: usize,
+    extra: &[bool],
 ) -> (Vec<super::quads::Quad>, Vec<bool>, Vec<u32>) {
     use rayon::prelude::*;
     let nq = geo.quads.len();
@@ -535,6 +537,11 @@ fn keep_shown(
             a
         })
         .unwrap_or_else(|| vec![false; nq]);
+    let shown: Vec<bool> = shown
+        .iter()
+        .enumerate()
+        .map(|(q, &s)| s || extra.get(q) == Some(&true))
+        .collect();
     let mut new_index = vec![u32::MAX; nq];
     let mut quads = Vec::new();
     let mut opacity = Vec::new();
@@ -745,9 +752,20 @@ pub fn bake(
     let mut backface_pixels;
     let mut trained_texels;
     let mut round = 0;
+    // With `keep_behind`, the quads of the last two-layer pass's layer
+    // behind are kept as well (none before the first pass).
+    let behind_of = |pe: &visibility::Peel, nq: usize| match params.visibility.keep_behind {
+        true => pe.behind_quads(nq, p2),
+        false => Vec::new(),
+    };
+    let mut behind_quads: Vec<bool> = layers
+        .as_ref()
+        .map(|pe| behind_of(pe, geo.quads.len()))
+        .unwrap_or_default();
     loop {
-        // Keep the quads some training pixel shows.
-        let (quads, opacity, new_index) = keep_shown(&geo, &gb, p2);
+        // Keep the quads some training pixel shows (and, with
+        // `keep_behind`, those behind them).
+        let (quads, opacity, new_index) = keep_shown(&geo, &gb, p2, &behind_quads);
         if round == 0 {
             t2 = Instant::now();
         }
@@ -878,6 +896,7 @@ pub fn bake(
         // layers' buffers are still built there for their lost count, the
         // report's measure of it: one linear pass, small beside a new
         // rasterization.)
+        behind_quads = behind_of(&peeled, geo.quads.len());
         let (next, lost) = peeled.gbuffers(&geo.opacity, supersample);
         let tiles = peeled.tiles;
         drop(peeled);
