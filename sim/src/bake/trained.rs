@@ -37,6 +37,7 @@ pub mod gbuffer;
 pub mod init;
 pub mod net;
 pub mod nets;
+pub mod novel;
 pub mod sampling;
 pub mod threshold;
 pub mod visibility;
@@ -765,6 +766,17 @@ pub fn bake(
     loop {
         // Keep the quads some training pixel shows (and, with
         // `keep_behind`, those behind them).
+        // With `keep_novel`, also the quads a camera between the training
+        // views shows first ([`novel`]).
+        if params.visibility.keep_novel {
+            let centre = 0.5 * (geo.cube.min + geo.cube.max);
+            let cams = novel::virtual_cameras(views, centre);
+            let seen = novel::shown_from(&geo, p, &cams, supersample)?;
+            behind_quads.resize(seen.len(), false);
+            for (k, s) in behind_quads.iter_mut().zip(seen) {
+                *k |= s;
+            }
+        }
         let (quads, opacity, new_index) = keep_shown(&geo, &gb, p2, &behind_quads);
         if round == 0 {
             t2 = Instant::now();
