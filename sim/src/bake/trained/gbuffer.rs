@@ -124,16 +124,7 @@ fn rasterize_bits(
                 }
                 let (bx, by) = (b as u32 % tx, b as u32 / tx);
                 tile.begin(&view, bx * t, by * t);
-                // Nearest first (ids ascend with the index), the hidden
-                // quads skipped: the samples of drawing all in order.
-                for (_, sq, near) in near_first(bin, &projected, &nearness, &mut keyed) {
-                    if tile.hides(sq, near) {
-                        continue;
-                    }
-                    if let Some(mask) = masks.get(sq.part as usize) {
-                        tile.draw_by_id(sq, mask);
-                    }
-                }
+                draw_near_first(&mut tile, bin, &projected, &nearness, &mut keyed, &masks);
                 let (x0, y0, w, h) = tile.rect();
                 for oy in 0..h / ss {
                     for ox in 0..w / ss {
@@ -309,6 +300,27 @@ pub(super) fn near_first<'a>(
         let near = f32::from_bits(!((k >> 32) as u32));
         projected.get(i as usize).map(|sq| (i, sq, near))
     })
+}
+
+/// Draws a bin's quads into `tile` (begun) nearest first (ids ascend with
+/// the index), the hidden ones skipped: the samples of drawing them all
+/// in order ([`near_first`], [`TileRenderer::draw_by_id`]).
+pub(super) fn draw_near_first(
+    tile: &mut TileRenderer<TILE, TILE>,
+    bin: &[u32],
+    projected: &[ScreenQuad],
+    nearness: &[u32],
+    keyed: &mut Vec<u64>,
+    masks: &[AlphaBits<'_>],
+) {
+    for (_, sq, near) in near_first(bin, projected, nearness, keyed) {
+        if tile.hides(sq, near) {
+            continue;
+        }
+        if let Some(mask) = masks.get(sq.part as usize) {
+            tile.draw_by_id(sq, mask);
+        }
+    }
 }
 
 /// The texel (`quad · p² + y · p + x`) tile-local sample `(x, y)` of

@@ -15,7 +15,7 @@ use rayon::prelude::*;
 
 use super::super::{BakeError, BakeView};
 use super::extract::Geometry;
-use super::gbuffer::{alpha_masks, bin, near_first, nearness, pages_of, Binned, TILE};
+use super::gbuffer::{alpha_masks, bin, draw_near_first, nearness, pages_of, Binned, TILE};
 use crate::camera::Camera;
 use crate::render::{supersampled_view, view_of};
 use nerflex_core::raster::{Quad as RasterQuad, TileRenderer};
@@ -86,14 +86,7 @@ pub fn shown_from(
                         continue;
                     }
                     tile.begin(&view, (b as u32 % tx) * t, (b as u32 / tx) * t);
-                    for (_, sq, near) in near_first(bin, &projected, &nearness, &mut keyed) {
-                        if tile.hides(sq, near) {
-                            continue;
-                        }
-                        if let Some(mask) = masks.get(sq.part as usize) {
-                            tile.draw_by_id(sq, mask);
-                        }
-                    }
+                    draw_near_first(&mut tile, bin, &projected, &nearness, &mut keyed, &masks);
                     let (_, _, w, h) = tile.rect();
                     for y in 0..h {
                         for x in 0..w {
