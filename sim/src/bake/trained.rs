@@ -764,10 +764,9 @@ pub fn bake(
         .map(|pe| behind_of(pe, geo.quads.len()))
         .unwrap_or_default();
     loop {
-        // Keep the quads some training pixel shows (and, with
-        // `keep_behind`, those behind them).
-        // With `keep_novel`, also the quads a camera between the training
-        // views shows first ([`novel`]).
+        // Keep the quads some training pixel shows; with `keep_behind`
+        // also those behind them, and with `keep_novel` those a camera
+        // between the training views shows first ([`novel`]).
         if params.visibility.keep_novel {
             let centre = 0.5 * (geo.cube.min + geo.cube.max);
             let cams = novel::virtual_cameras(views, centre);
