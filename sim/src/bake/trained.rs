@@ -538,16 +538,11 @@ fn keep_shown(
             a
         })
         .unwrap_or_else(|| vec![false; nq]);
-    let shown: Vec<bool> = shown
-        .iter()
-        .enumerate()
-        .map(|(q, &s)| s || extra.get(q) == Some(&true))
-        .collect();
     let mut new_index = vec![u32::MAX; nq];
     let mut quads = Vec::new();
     let mut opacity = Vec::new();
     for q in 0..nq {
-        if shown[q] {
+        if shown[q] || extra.get(q) == Some(&true) {
             new_index[q] = quads.len() as u32;
             quads.push(geo.quads[q]);
             opacity.extend_from_slice(&geo.opacity[q * p2..(q + 1) * p2]);
@@ -759,7 +754,7 @@ pub fn bake(
         true => pe.behind_quads(nq, p2),
         false => Vec::new(),
     };
-    let mut behind_quads: Vec<bool> = layers
+    let mut also_keep: Vec<bool> = layers
         .as_ref()
         .map(|pe| behind_of(pe, geo.quads.len()))
         .unwrap_or_default();
@@ -771,12 +766,12 @@ pub fn bake(
             let centre = 0.5 * (geo.cube.min + geo.cube.max);
             let cams = novel::virtual_cameras(views, centre);
             let seen = novel::shown_from(&geo, p, &cams, supersample)?;
-            behind_quads.resize(seen.len(), false);
-            for (k, s) in behind_quads.iter_mut().zip(seen) {
+            also_keep.resize(seen.len(), false);
+            for (k, s) in also_keep.iter_mut().zip(seen) {
                 *k |= s;
             }
         }
-        let (quads, opacity, new_index) = keep_shown(&geo, &gb, p2, &behind_quads);
+        let (quads, opacity, new_index) = keep_shown(&geo, &gb, p2, &also_keep);
         if round == 0 {
             t2 = Instant::now();
         }
@@ -907,7 +902,7 @@ pub fn bake(
         // layers' buffers are still built there for their lost count, the
         // report's measure of it: one linear pass, small beside a new
         // rasterization.)
-        behind_quads = behind_of(&peeled, geo.quads.len());
+        also_keep = behind_of(&peeled, geo.quads.len());
         let (next, lost) = peeled.gbuffers(&geo.opacity, supersample);
         let tiles = peeled.tiles;
         drop(peeled);
