@@ -454,6 +454,13 @@ pub fn bake(
             b = v.block
         );
     }
+    if params.visibility.keep_novel {
+        let n = &s.novel;
+        println!(
+            "trained: keep novel: {} virtual cameras show {} quads first ({:.2} s)",
+            n.cameras, n.quads, n.seconds
+        );
+    }
     if params.fill_holes > 0 {
         let f = &s.fill;
         println!(
