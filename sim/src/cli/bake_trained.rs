@@ -151,11 +151,12 @@ pub struct TrainedArgs {
     pub keep_behind: bool,
     /// Keep the quads a virtual camera between the training views shows
     /// first as well (one per training view, at the angular midpoint to
-    /// its nearest neighbour): the quads a novel view sees through the
-    /// gaps between the front planes. Gear (128, 13): +0.15 dB, holes
-    /// 14.8 % → 7.7 % of the squared error, for 10 % more GPU bytes;
-    /// (256, 13): +0.27 dB, 19.3 % → 9.9 %, for 12 % more
-    /// (docs/baking.md, "Session 32").
+    /// its nearest neighbour; one pass before the first round): the
+    /// quads a novel view sees through the gaps between the front planes.
+    /// Gear (128, 13): +0.19 dB, holes 14.8 % → 8.2 % of the squared
+    /// error, for 9 % more GPU bytes; (256, 13): +0.28 dB for 10 % more;
+    /// lego (128, 17): +0.02 dB for 4 % more and 1.03 times the time
+    /// (docs/baking.md, "Session 33").
     #[arg(long)]
     pub keep_novel: bool,
     /// The trained baker's quads: `planes` (per voxel, planar quads

@@ -99,9 +99,8 @@ pub struct VisibilitySettings {
     /// Keep the quads a virtual camera between the training views shows
     /// first before the first round as well ([`super::novel`]): the quads
     /// a novel view sees through the gaps between the front planes. Gear
-    /// (p = 13): +0.15 dB at g = 128 and +0.27 dB at 256 for 10 % and 12 %
-    /// more GPU bytes (docs/baking.md, "Session 32"; session 33's single
-    /// pass: "Session 33").
+    /// (p = 13): +0.19 dB at g = 128 and +0.28 dB at 256 for 9 % and 10 %
+    /// more GPU bytes (docs/baking.md, "Session 33").
     pub keep_novel: bool,
 }
 
