@@ -408,8 +408,18 @@ pub fn bake(
         th.seconds
     );
     println!(
-        "trained: {} shell + {} full voxels, {} quads extracted, {} dropped (seen mostly against the background), {} kept (seen by a training pixel)",
-        s.shell_voxels, s.full_voxels, s.extracted_quads, s.carved_quads, s.kept_quads
+        "trained: {} shell + {} full voxels, {} quads extracted, {} dropped (seen mostly against the background), {} kept (seen by a training pixel{})",
+        s.shell_voxels,
+        s.full_voxels,
+        s.extracted_quads,
+        s.carved_quads,
+        s.kept_quads,
+        match (params.visibility.keep_behind, params.visibility.keep_novel) {
+            (false, false) => "",
+            (true, false) => ", or behind one",
+            (false, true) => ", or by a virtual camera",
+            (true, true) => ", behind one or by a virtual camera",
+        }
     );
     println!(
         "trained: {} opaque texels, {} shown by a training pixel; feature lattice {}³ cells, {} vertices, {} reached; {} training pixels; MLP's initial fit: MSE {:.5}",
