@@ -799,7 +799,9 @@ pub fn bake(
             *k |= s;
         }
         let (quads, opacity, new_index) = keep_shown(&geo, &gb, p2, &also_keep);
-        novel_kept = renumbered(&novel_kept, &new_index, quads.len());
+        if !novel_kept.is_empty() {
+            novel_kept = renumbered(&novel_kept, &new_index, quads.len());
+        }
         if round == 0 {
             t2 = Instant::now();
         }
