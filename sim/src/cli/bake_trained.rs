@@ -382,7 +382,13 @@ pub fn bake(
         .field
         .as_deref()
         .context("--baker trained needs --field")?;
+    let t_load = std::time::Instant::now();
     let field = load_field(spec, capture, object)?;
+    println!(
+        "trained: field {} loaded in {:.2} s",
+        spec.display(),
+        t_load.elapsed().as_secs_f64()
+    );
     if args.probe {
         probe(args, field.as_ref(), views, grid, patch)?;
     }

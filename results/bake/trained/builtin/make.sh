@@ -12,7 +12,9 @@
 # Writes into WORK (default ./builtin-work): the capture, the fields, the
 # bake cache; then copies each sweep here as OBJECT-<budget>-v<baker>.csv
 # with its log and curves, and the fields' logs. About 80 min on 2 cores (the default field alone 14 min).
-# Usage: results/bake/trained/builtin/make.sh [path/to/nerflex] [WORK] [OBJECT]
+# FIELDS (environment) picks the fields, default all three; session 34 ran
+# FIELDS=eval-budget for the nine objects without a sweep (about 20 min each).
+# Usage: [FIELDS="eval-budget ..."] results/bake/trained/builtin/make.sh [path/to/nerflex] [WORK] [OBJECT]
 set -euo pipefail
 HERE="$(cd "$(dirname "$0")" && pwd)"
 N="$(realpath "${1:-target/release/nerflex}")"
@@ -20,15 +22,17 @@ W="${2:-builtin-work}"
 O="${3:-gear}"
 mkdir -p "$W" && cd "$W"
 [ -d cap ] || "$N" scene make --objects "$O" --views 50 --test-views 12 --size 800 --out cap > make.log
-mkdir -p eval-budget two-levels default
-[ -f eval-budget/"$O".safetensors ] || "$N" train --capture cap --object "$O" --out eval-budget/"$O".safetensors \
+FIELDS="${FIELDS:-eval-budget two-levels default}"
+has() { case " $FIELDS " in *" $1 "*) return 0 ;; *) return 1 ;; esac; }
+mkdir -p $FIELDS
+! has eval-budget || [ -f eval-budget/"$O".safetensors ] || "$N" train --capture cap --object "$O" --out eval-budget/"$O".safetensors \
   --levels 128:800 --batch 8192 --tv-every 1 --measure > train-eval-budget.log
-[ -f two-levels/"$O".safetensors ] || "$N" train --capture cap --object "$O" --out two-levels/"$O".safetensors \
+! has two-levels || [ -f two-levels/"$O".safetensors ] || "$N" train --capture cap --object "$O" --out two-levels/"$O".safetensors \
   --levels 128:1000,256:2000 --measure > train-two-levels.log
-[ -f default/"$O".safetensors ] || "$N" train --capture cap --object "$O" --out default/"$O".safetensors \
+! has default || [ -f default/"$O".safetensors ] || "$N" train --capture cap --object "$O" --out default/"$O".safetensors \
   --measure > train-default.log
 V=v11 # the trained baker's version (bake::trained::TRAINED_BAKER_VERSION); v10 and v11: only the default field's sweep was re-run (sessions 29 and 30; session 31: tree's and session 32: text-panel's, default field only)
-for f in eval-budget two-levels default; do
+for f in $FIELDS; do
   "$N" bake --sweep --capture cap --object "$O" --field $f --grid 16,32,64,128,256 --patch 5,9,13,17 \
     --epochs 2 --csv "samples-$f.csv" --plots "plots-$f" --cache "cache-$f" > "sweep-$f.log"
   cp "samples-$f.csv" "$HERE/$O-$f-$V.csv"
