@@ -6,36 +6,16 @@ object, the best held-out SSIM and where, the corners (32, 5) and
 `table.py` prints one sweep's whole grid.
 Usage: results/bake/trained/builtin/summary.py A.csv [B.csv …]
 """
-import csv
 import sys
 
-
-def falls(rows):
-    gs = sorted({g for g, _ in rows})
-    ps = sorted({p for _, p in rows})
-    out = []
-    for (g, p), r in rows.items():
-        nexts = []
-        if gs.index(g) + 1 < len(gs):
-            nexts.append((gs[gs.index(g) + 1], p))
-        if ps.index(p) + 1 < len(ps):
-            nexts.append((g, ps[ps.index(p) + 1]))
-        for n in nexts:
-            if n in rows:
-                d = float(rows[n]["ssim"]) - float(r["ssim"])
-                if d < -0.002:
-                    out.append((d, (g, p), n))
-    return sorted(out)
+from table import falls, read
 
 
 def main(paths):
     print("| sweep | object | best SSIM / PSNR at (g, p) | (32, 5) | (256, 17) | range SSIM / dB | falls > 0.002 (largest) |")
     print("|---|---|---|---|---|---|---|")
     for path in paths:
-        rows = {}
-        with open(path) as f:
-            for r in csv.DictReader(f):
-                rows[(int(r["g"]), int(r["p"]))] = r
+        rows = read(path)
         if not rows:
             print(f"| {path} | (empty) | | | | | |")
             continue

@@ -9,12 +9,38 @@ import csv
 import sys
 
 
+def read(path):
+    """A sweep CSV as {(g, p): row}."""
+    rows = {}
+    with open(path) as f:
+        for r in csv.DictReader(f):
+            rows[(int(r["g"]), int(r["p"]))] = r
+    return rows
+
+
+def falls(rows, by=0.002):
+    """Neighbouring pairs (next g or next p) whose SSIM falls by more than
+    `by`, largest first: (change, (g, p), next)."""
+    gs = sorted({g for g, _ in rows})
+    ps = sorted({p for _, p in rows})
+    out = []
+    for (g, p), r in rows.items():
+        nexts = []
+        if gs.index(g) + 1 < len(gs):
+            nexts.append((gs[gs.index(g) + 1], p))
+        if ps.index(p) + 1 < len(ps):
+            nexts.append((g, ps[ps.index(p) + 1]))
+        for n in nexts:
+            if n in rows:
+                d = float(rows[n]["ssim"]) - float(r["ssim"])
+                if d < -by:
+                    out.append((d, (g, p), n))
+    return sorted(out)
+
+
 def main(paths):
     for path in paths:
-        rows = {}
-        with open(path) as f:
-            for r in csv.DictReader(f):
-                rows[(int(r["g"]), int(r["p"]))] = r
+        rows = read(path)
         gs = sorted({g for g, _ in rows})
         ps = sorted({p for _, p in rows})
         print(f"## {path}\n")
@@ -35,15 +61,8 @@ def main(paths):
                 f"\nrange (256, 17) − (32, 5): {float(hi['ssim']) - float(lo['ssim']):+.4f} SSIM, "
                 f"{float(hi['psnr']) - float(lo['psnr']):+.2f} dB"
             )
-        falls = []
-        for (g, p), r in rows.items():
-            for n in [(gs[gs.index(g) + 1], p) if gs.index(g) + 1 < len(gs) else None,
-                      (g, ps[ps.index(p) + 1]) if ps.index(p) + 1 < len(ps) else None]:
-                if n and n in rows:
-                    d = float(rows[n]["ssim"]) - float(r["ssim"])
-                    if d < -0.002:
-                        falls.append(f"({g}, {p}) → {n}: {d:+.4f}")
-        print(f"falls over 0.002: {len(falls)}" + ("" if not falls else ": " + "; ".join(sorted(falls))))
+        fl = sorted(f"({g}, {p}) → {n}: {d:+.4f}" for d, (g, p), n in falls(rows))
+        print(f"falls over 0.002: {len(fl)}" + ("" if not fl else ": " + "; ".join(fl)))
         print()
 
 
