@@ -13,7 +13,7 @@
 # bake cache; then copies each sweep here as OBJECT-<budget>-v<baker>.csv
 # with its log and curves, and the fields' logs. About 80 min on 2 cores (the default field alone 14 min).
 # FIELDS (environment) picks the fields, default all three; session 34 ran
-# FIELDS=eval-budget for the nine objects without a sweep (about 20 min each).
+# FIELDS=eval-budget for the nine objects without a sweep (sweeps of 9–40 min each, beside other jobs).
 # Usage: [FIELDS="eval-budget ..."] results/bake/trained/builtin/make.sh [path/to/nerflex] [WORK] [OBJECT]
 set -euo pipefail
 HERE="$(cd "$(dirname "$0")" && pwd)"
