@@ -28,6 +28,9 @@ use rayon::prelude::*;
 use super::quads::Quad;
 use super::{Aabb, BakeView};
 
+mod lookup;
+pub use lookup::HullLookup;
+
 /// Where objects of the NeRF-synthetic convention live: every object of the
 /// dataset fits in [-1.5, 1.5]³ (lego spans about [-0.64, 0.64] ×
 /// [-1.15, 0.97] × [-0.35, 1.0]).
@@ -270,6 +273,15 @@ impl Window {
         match self {
             Window::Margin(n) => n,
             Window::Radius(r) => r.ceil() as u32,
+        }
+    }
+
+    /// How far from a projection (pixels, per axis) the window's pixels
+    /// reach, their edges included.
+    fn extent(self) -> f32 {
+        match self {
+            Window::Margin(n) => n as f32 + 1.0,
+            Window::Radius(r) => r + 0.5,
         }
     }
 }
@@ -723,6 +735,13 @@ enum Verdict {
 /// One view's verdict on a voxel (centre, bounding-sphere radius).
 #[inline]
 fn judge(p: &Proj, table: &SummedArea, centre: Vec3, radius: f32) -> Verdict {
+    judge_grown(p, table, centre, radius, 1.0)
+}
+
+/// [`judge`] with the square grown by `margin` pixels on every side
+/// beyond the sphere's projection (`judge`'s own: 1).
+#[inline]
+fn judge_grown(p: &Proj, table: &SummedArea, centre: Vec3, radius: f32, margin: f32) -> Verdict {
     let c = p.w2c.transform_point3(centre);
     let depth = -c.z;
     if depth - radius <= 1e-4 {
@@ -732,8 +751,8 @@ fn judge(p: &Proj, table: &SummedArea, centre: Vec3, radius: f32) -> Verdict {
     let py = p.cy - p.fy * c.y / depth;
     // Half-size of a square that contains the sphere's projection (for the
     // off-axis case too: 1/(d − r) over-estimates the perspective growth).
-    let rx = p.fx * radius / (depth - radius) + 1.0;
-    let ry = p.fy * radius / (depth - radius) + 1.0;
+    let rx = p.fx * radius / (depth - radius) + margin;
+    let ry = p.fy * radius / (depth - radius) + margin;
     let (x0, x1, y0, y1) = (px - rx, px + rx, py - ry, py + ry);
     if x1 <= 0.0 || y1 <= 0.0 || x0 >= p.width || y0 >= p.height {
         return Verdict::Unseen;
@@ -809,7 +828,7 @@ pub fn texel_occupancy(sil: &Silhouettes, grid: &Grid, quads: &[Quad], p: u32) -
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::bake::{BakeView, Silhouette};
     use crate::camera::{Camera, Intrinsics};
@@ -821,7 +840,7 @@ mod tests {
     /// sphere), instance mask (1 = sphere). In the views listed in
     /// `hidden`, another object (label 2) covers the sphere's pixels whose
     /// surface point is below z = −0.15, as an object in front would.
-    fn sphere_views(hidden: &[usize]) -> Vec<(Camera, RgbaImage, GrayImage)> {
+    pub(crate) fn sphere_views(hidden: &[usize]) -> Vec<(Camera, RgbaImage, GrayImage)> {
         let k = Intrinsics::from_fov_x(40f32.to_radians(), 64, 64);
         (0..12)
             .map(|i| {
@@ -850,7 +869,10 @@ mod tests {
             .collect()
     }
 
-    fn silhouettes(views: &[(Camera, RgbaImage, GrayImage)], instance: bool) -> Silhouettes {
+    pub(crate) fn silhouettes(
+        views: &[(Camera, RgbaImage, GrayImage)],
+        instance: bool,
+    ) -> Silhouettes {
         let bv: Vec<BakeView<'_>> = views
             .iter()
             .map(|(camera, image, mask)| BakeView {

@@ -70,8 +70,9 @@ pub const MAX_DEPTH_CARVE_ROUNDS: u32 = 8;
 /// rate halved to 0.015, [`finetune::FinetuneSettings`]; 11: session 30's
 /// two visibility rounds on the planes, the earlier fine-tunes a quarter
 /// of the last one's, over 2.5 epochs instead of 3,
-/// [`visibility::round_epochs`]).
-pub const TRAINED_BAKER_VERSION: u32 = 11;
+/// [`visibility::round_epochs`]; 12: session 35's field inside bounded by
+/// the visual hull before extraction, [`TrainedParams::hull_surface`]).
+pub const TRAINED_BAKER_VERSION: u32 = 12;
 
 /// The geometry a bake extracts from the field.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -103,6 +104,52 @@ pub fn extract_geometry(
             nets::extract_nets(surface, g, p, params.surface.refine, Some(&params.surface))
         }
     }
+}
+
+/// The hull lookup that bounds `surface` when `params.hull_surface` asks
+/// for it: over the cube of the field's own inside, at g voxels per edge
+/// within 32…256, its open voxels settled where the field stays within
+/// the hull ([`super::carve::HullLookup::settle_within`]: on lego
+/// (128, 17) nine in ten, so the bound costs about 3 s of extraction).
+pub fn hull_lookup<'s>(
+    surface: &extract::Surface<'_>,
+    sil: Option<&'s super::carve::Silhouettes>,
+    params: &TrainedParams,
+) -> Option<(super::carve::HullLookup<'s>, HullBoundReport)> {
+    let sil = sil.filter(|_| params.hull_surface)?;
+    let t = Instant::now();
+    let cube = extract::object_cube(surface)?;
+    let g = params.grid.clamp(32, 256);
+    let mut lookup = super::carve::HullLookup::new(sil, &cube, g);
+    let (outside, inside, open) = lookup.counts();
+    let settled = lookup.settle_within(|x| surface.inside(x));
+    let report = HullBoundReport {
+        grid: g,
+        outside,
+        inside,
+        open,
+        settled,
+        seconds: t.elapsed().as_secs_f64(),
+    };
+    Some((lookup, report))
+}
+
+/// How the visual hull bounded the field's inside ([`hull_lookup`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct HullBoundReport {
+    /// Voxels per edge of the lookup.
+    pub grid: u32,
+    /// Lookup voxels wholly outside the hull.
+    pub outside: u64,
+    /// Lookup voxels wholly inside it.
+    pub inside: u64,
+    /// Lookup voxels the hull's surface may cross.
+    pub open: u64,
+    /// Of those, voxels where the field stays within the hull (settled
+    /// inside: the field alone decides there).
+    pub settled: u64,
+    /// Time to build and settle the lookup, seconds.
+    pub seconds: f64,
 }
 
 /// The planner's choice of geometry as the baker's (the scene file names
@@ -183,6 +230,12 @@ pub struct TrainedParams {
     pub close: u32,
     /// Empty the texels outside the training views' visual hull.
     pub hull_carve: bool,
+    /// Bound the field's inside by the training views' visual hull before
+    /// the quads are extracted ([`extract::Surface::bounded_by`]), so the
+    /// planes sit on the hull where the field's surface reaches past it
+    /// (baker version 12; without it, pawn (256, 9) lost 14 % of its
+    /// held-out interior pixels to the hull carve).
+    pub hull_surface: bool,
     /// A texel is outside only where a view shows background on every
     /// pixel whose centre lies within this many pixels of its projection
     /// (`carve::Silhouettes::with_radius`; baker version 6: 1.0, before
@@ -243,6 +296,7 @@ impl TrainedParams {
             sampling: sampling::FinetuneSampling::Auto,
             close: GeometryKind::Planes.default_close(),
             hull_carve: true,
+            hull_surface: true,
             hull_radius: GeometryKind::Planes.default_hull_radius(),
             geometry: GeometryKind::Planes,
             surface: extract::SurfaceSettings::default(),
@@ -434,6 +488,9 @@ pub struct TrainedTimes {
 pub struct TrainedStats {
     /// The surface's density threshold and its check against the photos.
     pub threshold: threshold::ThresholdReport,
+    /// The visual hull's bound on the field's inside, when set
+    /// ([`TrainedParams::hull_surface`]).
+    pub hull_bound: Option<HullBoundReport>,
     /// Voxels the surface crosses.
     pub shell_voxels: u64,
     /// Voxels wholly inside.
@@ -650,7 +707,16 @@ pub fn bake(
     let threshold =
         threshold::surface_sigma(field, views, params.surface_alpha, params.surface_miss);
     let surface = extract::Surface::with_sigma(field, threshold.sigma);
+    let sil = (params.hull_carve || params.hull_surface)
+        .then(|| super::carve::Silhouettes::new(views).with_radius(params.hull_radius));
+    let lookup = hull_lookup(&surface, sil.as_ref(), params);
+    let hull_bound = lookup.as_ref().map(|l| l.1);
+    let surface = match &lookup {
+        Some(l) => surface.bounded_by(&l.0),
+        None => surface,
+    };
     let geo = extract_geometry(&surface, params).ok_or(BakeError::Empty)?;
+    drop(lookup);
     let mut geo = geo;
     let voxel_px = sampling::voxel_px(&geo.cube, views, g);
     let supersample = params.sampling.supersampled(voxel_px);
@@ -660,13 +726,14 @@ pub fn bake(
     let closed_texels = close::close(&mut geo.opacity, p, params.close);
     // A point on an opaque object projects onto its silhouette in every
     // view: texels that some training view shows as background go.
-    if params.hull_carve {
-        let sil = super::carve::Silhouettes::new(views).with_radius(params.hull_radius);
-        let hull = super::carve::texel_occupancy_hull(&sil, &geo.quads, p);
+    if let (true, Some(sil)) = (params.hull_carve, &sil) {
+        let hull = super::carve::texel_occupancy_hull(sil, &geo.quads, p);
         for (o, h) in geo.opacity.iter_mut().zip(hull) {
             *o &= h;
         }
     }
+    // 3 MB a view at 800 px: not kept through the G-buffers' peak.
+    drop(sil);
     let t1 = Instant::now();
 
     // G-buffers through an export whose atlas carries only the opacity;
@@ -1018,6 +1085,7 @@ pub fn bake(
     };
     let stats = TrainedStats {
         threshold,
+        hull_bound,
         shell_voxels: geo.shell_voxels,
         full_voxels: geo.full_voxels,
         extracted_quads: nq as u64,
