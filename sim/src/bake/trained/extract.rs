@@ -693,6 +693,7 @@ impl Geometry {
 mod tests {
     use super::super::analytic::Sphere;
     use super::*;
+    use crate::bake::carve::HullLookup;
     use crate::train::field::RadianceField;
 
     /// |r − R| of every opaque texel of `g` (patch `p`) about `f`'s centre.
@@ -791,6 +792,41 @@ mod tests {
             .find(|(q, _)| q.normal.z > 0.9)
             .expect("a +z quad");
         assert!(count(&o_short) > count(o0) && count(&o_short) < o1.len());
+    }
+
+    /// A field whose inside reaches past the photos' contour (a sphere of
+    /// 0.7 where the photos show one of 0.5, as a soft surface cut at a
+    /// lowered threshold does): bounded by the hull, the planes sit on the
+    /// hull instead of on the field's surface.
+    #[test]
+    fn the_hull_bound_puts_the_planes_on_the_hull() {
+        use crate::bake::carve::tests::{silhouettes, sphere_views};
+        let f = Sphere::new(Vec3::ZERO, 0.7);
+        let sil = silhouettes(&sphere_views(&[]), false).with_radius(1.0);
+        let s = Surface::new(&f, 0.5);
+        let cube = object_cube(&s).expect("the sphere has an inside");
+        let mut lookup = HullLookup::new(&sil, &cube, 16);
+        lookup.settle_within(|x| s.inside(x));
+        let median = |g: &Geometry| {
+            let mut r = texel_radii(g, &f, 5);
+            r.sort_by(f32::total_cmp);
+            r[r.len() / 2]
+        };
+        let free = extract(&s, 16, 5).expect("an inside");
+        let bounded = extract(&s.bounded_by(&lookup), 16, 5).expect("an inside");
+        let (rf, rb) = (median(&free), median(&bounded));
+        assert!((rf - 0.7).abs() < 0.03, "{rf}");
+        assert!(rb > 0.45 && rb < 0.6, "{rb}");
+        // Every opaque texel of the bounded planes lies within a voxel of
+        // the hull (the planes are tilted and grown beyond their voxels).
+        let voxel = (cube.max - cube.min).max_element() / 16.0;
+        let (p, p2) = (5, 25);
+        for (q, occ) in bounded.quads.iter().zip(bounded.opacity.chunks(p2)) {
+            for (t, _) in occ.iter().enumerate().filter(|(_, &o)| o) {
+                let x = texel_point(q, p, t as u32 % p, t as u32 / p);
+                assert!(sil.inside(x - voxel * x.normalize_or_zero()), "{x}");
+            }
+        }
     }
 
     #[test]
