@@ -180,7 +180,8 @@ pub struct TrainedArgs {
     /// the planes on the hull where the field's soft surface reaches past
     /// the photos' contour, and the hull carve no longer empties planes
     /// with nothing behind them: pawn (256, 9) 33.00 → 41.05 dB held out,
-    /// lego (128, 17) +0.16 dB (docs/baking.md, "Session 35").
+    /// lego (128, 17) +0.08 dB over three seeds (docs/baking.md,
+    /// "Session 35").
     #[arg(long)]
     pub no_hull_surface: bool,
     /// The hull carve's window: a texel goes when some view shows

@@ -32,8 +32,8 @@ enum Cell {
 /// all of it on the silhouette already.
 #[derive(Debug, Clone, Copy)]
 struct Open {
-    start: u32,
-    end: u32,
+    start: usize,
+    end: usize,
     seen: u32,
 }
 
@@ -102,7 +102,7 @@ impl<'s> HullLookup<'s> {
                 Cell::In => (Parent::In, &[]),
                 Cell::Test(n) => {
                     let o = open[n as usize];
-                    let v = &views[o.start as usize..o.end as usize];
+                    let v = &views[o.start..o.end];
                     (Parent::Open(o.seen), v)
                 }
             }
@@ -176,8 +176,8 @@ impl<'s> HullLookup<'s> {
                         Cell::In
                     } else {
                         slab.1.push(Open {
-                            start: start as u32,
-                            end: slab.2.len() as u32,
+                            start,
+                            end: slab.2.len(),
                             seen,
                         });
                         Cell::Test(slab.1.len() as u32 - 1)
@@ -189,7 +189,7 @@ impl<'s> HullLookup<'s> {
             .collect();
         let mut level: Slab = (Vec::with_capacity(gu * gu * gu), Vec::new(), Vec::new());
         for (cells, open, views) in slabs {
-            let (o, v) = (level.1.len() as u32, level.2.len() as u32);
+            let (o, v) = (level.1.len() as u32, level.2.len());
             level.0.extend(cells.into_iter().map(|c| match c {
                 Cell::Test(n) => Cell::Test(n + o),
                 c => c,
@@ -219,7 +219,7 @@ impl<'s> HullLookup<'s> {
             Cell::In => true,
             Cell::Test(n) => {
                 let o = self.open[n as usize];
-                let views = &self.views[o.start as usize..o.end as usize];
+                let views = &self.views[o.start..o.end];
                 self.sil
                     .inside_views(x, views, o.seen as usize, self.min_seen)
             }
@@ -289,11 +289,8 @@ mod tests {
                 let sil = silhouettes(&views, true).with_radius(radius);
                 let lookup = HullLookup::new(&sil, &cube, g);
                 let (out, inn, test) = lookup.counts();
-                // At 64 px only the coarse voxels lie wholly inside.
-                // (With another object over the sphere no voxel is wholly
-                // on its silhouette.)
-                // (With another object over the sphere no voxel lies wholly
-                // on its silhouette.)
+                // At 64 px only coarse voxels lie wholly inside, and with
+                // another object over the sphere none does.
                 assert!(out > 0 && test > 0, "{out} {inn} {test}");
                 assert_eq!(inn > 0, hidden.is_empty(), "{out} {inn} {test}");
                 let n = 49;
