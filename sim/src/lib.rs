@@ -16,6 +16,7 @@ pub mod device;
 pub mod eval;
 pub mod fit;
 pub mod geometry;
+pub mod memory;
 pub mod metrics;
 pub mod output;
 pub mod pipeline;

@@ -72,6 +72,7 @@ fn is_broken_pipe(msg: &str) -> bool {
 
 fn main() -> std::process::ExitCode {
     quiet_on_broken_pipe();
+    nerflex_sim::memory::keep_freed_pages();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Plan(a) => cli::plan::run(a),

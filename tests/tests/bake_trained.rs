@@ -421,3 +421,39 @@ fn a_supersampled_finetune_is_what_the_supersampled_renderer_shows() {
     );
     assert!(report.psnr_after > report.psnr_before + 1.0, "{report:?}");
 }
+
+/// `--choose-feature-res`: every candidate is baked from the training
+/// views not held back and measured on the held-back ones; the chosen
+/// resolution is the best-scoring candidate's, the default first.
+#[test]
+fn the_lattice_choice_keeps_the_candidate_that_renders_held_back_views_best() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (obj, field) = ball(tmp.path());
+    let views = obj.bake_views();
+    let mut params = ball_params(false);
+    params.finetune.epochs = 2.0;
+    let c = trained::lattice_choice::choose(&field, &views, &params, &sweep::fixed_point_render)
+        .unwrap();
+    assert_eq!(
+        c.held_back,
+        trained::lattice_choice::held_back(views.len()).len()
+    );
+    assert_eq!(c.train_views + c.held_back, views.len());
+    let cells: Vec<u32> = c.candidates.iter().map(|k| k.cells).collect();
+    assert_eq!(cells, trained::lattice_choice::candidates(cells[0]));
+    assert!(cells.len() >= 2, "{cells:?}");
+    let best = c
+        .candidates
+        .iter()
+        .map(|k| k.psnr)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let chosen = c.candidates.iter().find(|k| k.cells == c.chosen).unwrap();
+    assert_eq!(chosen.psnr, best);
+    for k in &c.candidates {
+        assert!(k.psnr.is_finite() && k.psnr > 15.0, "{k:?}");
+    }
+    // The chosen lattice bakes from every view.
+    params.feature_res = c.chosen;
+    let tb = trained::bake(&field, &views, &params).unwrap();
+    assert_eq!(tb.stats.lattice_res, c.chosen);
+}

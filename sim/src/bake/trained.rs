@@ -35,6 +35,7 @@ pub mod fill;
 pub mod finetune;
 pub mod gbuffer;
 pub mod init;
+pub mod lattice_choice;
 pub mod net;
 pub mod nets;
 pub mod novel;

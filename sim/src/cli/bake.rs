@@ -199,6 +199,13 @@ fn base_params(args: &Args) -> BakeParams {
 
 /// Runs `nerflex bake`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.trained.choose_feature_res
+        && (args.sweep || args.trained.baker()? == super::bake_trained::Baker::Hull)
+    {
+        bail!(
+            "--choose-feature-res is for a single bake with --field; drop --sweep or --baker hull"
+        );
+    }
     if args.sweep {
         return run_sweep(&args);
     }

@@ -216,6 +216,14 @@ pub struct TrainedArgs {
     /// the training views see it).
     #[arg(long, default_value_t = 0)]
     pub feature_res: u32,
+    /// Choose the feature lattice's resolution for this object first: bake
+    /// from all but every 8th training view at the default resolution and
+    /// at a half and a quarter of it, keep the one that renders the held-back
+    /// views best (PSNR), then bake from every view with it
+    /// (`bake::trained::lattice_choice`; four bakes in all). Single bakes
+    /// only.
+    #[arg(long)]
+    pub choose_feature_res: bool,
     /// Before baking, print how well the extracted geometry's texel points
     /// carry the training images (`gbuffer::probe`: the field's colour at
     /// each shown texel's point against the pixel; a parallax measure).
@@ -402,7 +410,23 @@ pub fn bake(
     if args.probe {
         probe(args, field.as_ref(), views, grid, patch)?;
     }
-    let params = args.params(grid, patch);
+    let mut params = args.params(grid, patch);
+    if args.choose_feature_res {
+        let c = trained::lattice_choice::choose(
+            field.as_ref(),
+            views,
+            &params,
+            &crate::bake::sweep::fixed_point_render,
+        )?;
+        for k in &c.candidates {
+            println!(
+                "trained: feature lattice {}³ from {} views: {:.2} dB, SSIM {:.4} on the {} held back ({:.1} s)",
+                k.cells, c.train_views, k.psnr, k.ssim, c.held_back, k.seconds
+            );
+        }
+        println!("trained: feature lattice chosen: {}³ cells", c.chosen);
+        params.feature_res = c.chosen;
+    }
     let tb = trained::bake(field.as_ref(), views, &params)?;
     let s = &tb.stats;
     let t = &s.times;

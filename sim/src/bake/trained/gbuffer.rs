@@ -238,7 +238,9 @@ pub(super) struct Binned {
 /// Projects `quads` (`quads[i]` on page `i`) into `view` and bins them.
 pub(super) fn bin(quads: &[&[RasterQuad]], view: &nerflex_core::raster::View) -> Binned {
     let mut id = 0u32;
-    let mut projected = Vec::new();
+    // At its final size from the start: grown by doubling, lego's 24 MB
+    // per view was copied into fresh pages up to four times a pass.
+    let mut projected = Vec::with_capacity(quads.iter().map(|p| p.len()).sum());
     for (pi, part) in quads.iter().enumerate() {
         for q in part.iter() {
             if let Some(sq) = ScreenQuad::project(view, q, pi as u16, id) {
