@@ -424,7 +424,7 @@ fn a_supersampled_finetune_is_what_the_supersampled_renderer_shows() {
 
 /// `--choose-feature-res`: every candidate is baked from the training
 /// views not held back and measured on the held-back ones; the chosen
-/// resolution is the best-scoring candidate's, the default first.
+/// resolution is the best-scoring candidate's (SSIM), the default first.
 #[test]
 fn the_lattice_choice_keeps_the_candidate_that_renders_held_back_views_best() {
     let tmp = tempfile::tempdir().unwrap();
@@ -445,10 +445,10 @@ fn the_lattice_choice_keeps_the_candidate_that_renders_held_back_views_best() {
     let best = c
         .candidates
         .iter()
-        .map(|k| k.psnr)
+        .map(|k| k.ssim)
         .fold(f64::NEG_INFINITY, f64::max);
     let chosen = c.candidates.iter().find(|k| k.cells == c.chosen).unwrap();
-    assert_eq!(chosen.psnr, best);
+    assert_eq!(chosen.ssim, best);
     for k in &c.candidates {
         assert!(k.psnr.is_finite() && k.psnr > 15.0, "{k:?}");
     }
@@ -456,4 +456,52 @@ fn the_lattice_choice_keeps_the_candidate_that_renders_held_back_views_best() {
     params.feature_res = c.chosen;
     let tb = trained::bake(&field, &views, &params).unwrap();
     assert_eq!(tb.stats.lattice_res, c.chosen);
+}
+
+/// A sweep with the lattice chosen per object (`--sweep
+/// --choose-feature-res`): one choice per object, every configuration baked
+/// with it, the choice and the samples reused from the cache on a re-run.
+#[test]
+fn a_sweep_chooses_each_lattice_once_and_caches_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (obj, field) = ball(tmp.path());
+    let mut params = ball_params(false);
+    params.finetune.epochs = 2.0;
+    let opts = sweep::SweepOptions {
+        configs: vec![(8, 3), (16, 3)],
+        base: bake::BakeParams::new(0, 0),
+        jobs: 1,
+        cache: Some(sweep::Cache::new(tmp.path().join("cache"))),
+        lpips: None,
+        progress: false,
+        trained: Some(sweep::TrainedSweep {
+            fields: vec![&field],
+            field_ids: vec!["ball".into()],
+            params,
+            choose_lattice_at: Some((16, 3)),
+        }),
+    };
+    let objects = [obj];
+    let first = sweep::run(&objects, &opts, &sweep::fixed_point_render).unwrap();
+    assert_eq!(first.lattices.len(), 1);
+    let l = &first.lattices[0];
+    assert!(!l.reused);
+    let cells: Vec<u32> = l.candidates.iter().map(|c| c.0).collect();
+    assert!(cells.contains(&l.cells) && cells.len() >= 2, "{l:?}");
+    let best = l
+        .candidates
+        .iter()
+        .map(|c| c.1)
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert_eq!(
+        l.candidates.iter().find(|c| c.0 == l.cells).unwrap().1,
+        best
+    );
+    assert_eq!((first.baked, first.reused), (2, 0));
+    // The re-run bakes nothing and chooses nothing anew.
+    let again = sweep::run(&objects, &opts, &sweep::fixed_point_render).unwrap();
+    assert_eq!((again.baked, again.reused), (0, 2));
+    assert!(again.lattices[0].reused);
+    assert_eq!(again.lattices[0].cells, l.cells);
+    assert_eq!(again.samples, first.samples);
 }

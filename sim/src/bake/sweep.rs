@@ -609,6 +609,20 @@ impl Cache {
         (e.key == key).then_some(e.sample)
     }
 
+    /// A stored lattice choice, if any.
+    pub fn get_lattice(&self, key: &str) -> Option<LatticeChosen> {
+        let text = std::fs::read_to_string(self.dir.join(format!("{key}.json"))).ok()?;
+        serde_json::from_str(&text).ok()
+    }
+
+    /// Stores a lattice choice.
+    pub fn put_lattice(&self, key: &str, chosen: &LatticeChosen) -> anyhow::Result<()> {
+        let path = self.dir.join(format!("{key}.json"));
+        crate::output::create_parent(&path)?;
+        crate::output::write_file(&path, serde_json::to_string(chosen)?.as_bytes())?;
+        Ok(())
+    }
+
     /// Stores a sample (a temporary name unique to this writer, then a
     /// rename: concurrent sweeps storing the same key do not collide).
     pub fn put(&self, key: &str, sample: &Sample) -> anyhow::Result<()> {
@@ -658,6 +672,25 @@ pub struct TrainedSweep<'a> {
     pub field_ids: Vec<String>,
     /// Settings other than g and p.
     pub params: super::trained::TrainedParams,
+    /// Choose each object's feature lattice first, at this (g, p)
+    /// ([`super::trained::lattice_choice`]); the chosen resolution then
+    /// serves every configuration of the object (the lattice does not
+    /// depend on g or p). `None`: `params.feature_res` for all.
+    pub choose_lattice_at: Option<(u32, u32)>,
+}
+
+/// One object's feature lattice as a sweep chose it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LatticeChosen {
+    /// The object.
+    pub object: String,
+    /// Cells per edge chosen.
+    pub cells: u32,
+    /// Each candidate: cells, held-back SSIM and PSNR.
+    pub candidates: Vec<(u32, f64, f64)>,
+    /// Taken from the cache.
+    #[serde(skip)]
+    pub reused: bool,
 }
 
 /// What a sweep did.
@@ -669,6 +702,73 @@ pub struct SweepReport {
     pub reused: usize,
     /// Samples baked now.
     pub baked: usize,
+    /// The feature lattices chosen per object, if asked.
+    pub lattices: Vec<LatticeChosen>,
+}
+
+/// The trained parameters of object `oi`: the sweep's, with its feature
+/// lattice chosen first if asked (the choice cached beside the samples).
+fn object_params(
+    obj: &ObjectViews,
+    oi: usize,
+    t: &TrainedSweep<'_>,
+    cache: Option<&Cache>,
+    render: &RenderFn<'_>,
+) -> anyhow::Result<(super::trained::TrainedParams, Option<LatticeChosen>)> {
+    let mut tp = t.params.clone();
+    let Some((g, p)) = t.choose_lattice_at else {
+        return Ok((tp, None));
+    };
+    let Some((field, id)) = t.fields.get(oi).zip(t.field_ids.get(oi)) else {
+        bail!("no field for object `{}`", obj.name);
+    };
+    tp.grid = g;
+    tp.patch = p;
+    let mut h = Fnv64::default();
+    h.write(&obj.content_hash.to_le_bytes());
+    h.write(
+        format!(
+            "lattice choice v{} {id} {:?} {:?} {} {}",
+            super::trained::TRAINED_BAKER_VERSION,
+            tp,
+            obj.search_box,
+            obj.train.len(),
+            MEASURE_VERSION
+        )
+        .as_bytes(),
+    );
+    let key = format!("lattice-{}-g{g}-p{p}-{:016x}", obj.name, h.finish());
+    let stored = cache.and_then(|c| c.get_lattice(&key));
+    let chosen = match stored {
+        Some(mut c) => {
+            c.reused = true;
+            c
+        }
+        None => {
+            let views = obj.bake_views();
+            let c = super::trained::lattice_choice::choose(*field, &views, &tp, render)
+                .with_context(|| {
+                    format!("choosing {}'s feature lattice at g={g} p={p}", obj.name)
+                })?;
+            let chosen = LatticeChosen {
+                object: obj.name.clone(),
+                cells: c.chosen,
+                candidates: c
+                    .candidates
+                    .iter()
+                    .map(|k| (k.cells, k.ssim, k.psnr))
+                    .collect(),
+                reused: false,
+            };
+            if let Some(c) = cache {
+                c.put_lattice(&key, &chosen)?;
+            }
+            chosen
+        }
+    };
+    let mut tp = t.params.clone();
+    tp.feature_res = chosen.cells;
+    Ok((tp, Some(chosen)))
 }
 
 /// Runs the sweep over `objects` × grids × patches.
@@ -688,6 +788,16 @@ pub fn run(
     let mut todo: Vec<(usize, BakeParams, String)> = Vec::new();
     let mut done: BTreeMap<(String, u32, u32), Sample> = BTreeMap::new();
     let mut reused = 0;
+    // Per object: the trained settings (its lattice chosen first if asked).
+    let mut tparams = Vec::new();
+    let mut lattices = Vec::new();
+    if let Some(t) = &opts.trained {
+        for (oi, obj) in objects.iter().enumerate() {
+            let (tp, chosen) = object_params(obj, oi, t, opts.cache.as_ref(), render)?;
+            tparams.push(tp);
+            lattices.extend(chosen);
+        }
+    }
     for (oi, obj) in objects.iter().enumerate() {
         {
             for &(g, p) in &opts.configs {
@@ -705,7 +815,7 @@ pub fn run(
                         format!(
                             "trained v{} {id} {:?}",
                             super::trained::TRAINED_BAKER_VERSION,
-                            t.params
+                            tparams.get(oi).unwrap_or(&t.params)
                         )
                         .as_bytes(),
                     );
@@ -749,7 +859,7 @@ pub fn run(
                 bar.set_message(format!("{} g={} p={}", obj.name, params.grid, params.patch));
                 let r = match &opts.trained {
                     Some(t) => {
-                        let mut tp = t.params.clone();
+                        let mut tp = tparams.get(oi).unwrap_or(&t.params).clone();
                         tp.grid = params.grid;
                         tp.patch = params.patch;
                         match t.fields.get(oi) {
@@ -793,6 +903,7 @@ pub fn run(
         samples,
         reused,
         baked,
+        lattices,
     })
 }
 

@@ -199,12 +199,9 @@ fn base_params(args: &Args) -> BakeParams {
 
 /// Runs `nerflex bake`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if args.trained.choose_feature_res
-        && (args.sweep || args.trained.baker()? == super::bake_trained::Baker::Hull)
+    if args.trained.choose_feature_res && args.trained.baker()? == super::bake_trained::Baker::Hull
     {
-        bail!(
-            "--choose-feature-res is for a single bake with --field; drop --sweep or --baker hull"
-        );
+        bail!("--choose-feature-res chooses the trained baker's lattice: give --field, drop --baker hull");
     }
     if args.sweep {
         return run_sweep(&args);
@@ -502,11 +499,29 @@ fn run_sweep(args: &Args) -> anyhow::Result<()> {
             fields: v.iter().map(|(f, _)| f.as_ref()).collect(),
             field_ids: v.iter().map(|(_, id)| id.clone()).collect(),
             params: args.trained.params(0, 0),
+            choose_lattice_at: args
+                .trained
+                .choose_feature_res
+                .then_some(crate::bake::trained::lattice_choice::SWEEP_CONFIG),
         }),
         ..opts
     };
     let t0 = Instant::now();
     let report = sweep::run(&objects, &opts, &sweep::fixed_point_render)?;
+    for l in &report.lattices {
+        let scores: Vec<String> = l
+            .candidates
+            .iter()
+            .map(|(c, ssim, psnr)| format!("{c}³ {ssim:.4} / {psnr:.2} dB"))
+            .collect();
+        println!(
+            "{}: feature lattice {}³ chosen on held-back training views{} ({})",
+            l.object,
+            l.cells,
+            if l.reused { ", from the cache" } else { "" },
+            scores.join(", ")
+        );
+    }
     sweep::write_csv(&args.csv, &report.samples)?;
     if let Some(dir) = &args.plots {
         for p in sweep::plot_objects(&report.samples, dir)? {

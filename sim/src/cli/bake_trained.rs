@@ -219,9 +219,10 @@ pub struct TrainedArgs {
     /// Choose the feature lattice's resolution for this object first: bake
     /// from all but every 8th training view at the default resolution and
     /// at a half and a quarter of it, keep the one that renders the held-back
-    /// views best (PSNR), then bake from every view with it
-    /// (`bake::trained::lattice_choice`; four bakes in all). Single bakes
-    /// only.
+    /// views best (SSIM), then bake from every view with it
+    /// (`bake::trained::lattice_choice`; four bakes in all). With
+    /// `--sweep`: once per object at (64, 9), the choice then serving every
+    /// (g, p) and cached beside the samples.
     #[arg(long)]
     pub choose_feature_res: bool,
     /// Before baking, print how well the extracted geometry's texel points
