@@ -3,13 +3,13 @@
 //! A bake allocates and frees buffers of tens of megabytes per view and
 //! per pass (the projected quads, the two-layer G-buffers, the training
 //! pixels) on every rayon worker. glibc hands freed memory at the top of
-//! a worker's heap back to the kernel once it exceeds the trim threshold,
-//! so the next view's buffer faults its pages in and the kernel zeroes
-//! them again: on lego (128, 17) 5.09 M page faults and 21.8 s of system
-//! time in a 155 s (two-core) run, 10 % of the CPU samples in the kernel's
-//! page clearing. Keeping freed memory in the process cut that to 1.43 M
-//! faults and 11.8 s for 1.0 GB more peak memory (docs/baking.md,
-//! "Session 36").
+//! a worker's heap back to the kernel once it passes the trim threshold,
+//! so the next view's buffers fault their pages in again and the kernel
+//! zeroes them (10–13 % of a lego bake's CPU samples). Keeping freed
+//! memory, with the projected quads allocated at their final size, took
+//! lego (128, 17)'s whole command to 0.92 of its time and its peak from
+//! 4.39 to 3.57 GB, the export byte-identical (docs/baking.md, "Session
+//! 36").
 
 /// Keeps the memory a thread frees for its next allocations instead of
 /// returning it to the kernel (glibc's `M_TRIM_THRESHOLD` at its largest);

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Regenerates results/profile/trained/ from the trained baker's samples:
-#   results/bake/trained/samples-v11.csv        lego + chair at 800 × 800 (90 training views), baker version 11 (session 30;
-#                                               samples-v10.csv is session 29's version 10, samples-v9.csv session 28's
+#   results/bake/trained/samples-v12.csv        lego + chair at 800 × 800 (90 training views), baker version 12 (session 36,
+#                                               chair's field re-trained at the default schedule; samples-v11.csv is session 30's
+#                                               version 11, samples-v10.csv is session 29's version 10, samples-v9.csv session 28's
 #                                               version 9, samples-v7.csv session 26's version 7)
 #                                               (session 26; samples-v6.csv is session 23's version-6 sweep, samples.csv session 20's version 5),
 #                                               g {16…256} × p {5…17}, `nerflex bake --sweep --field …`
@@ -20,7 +21,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 N=${1:-target/release/nerflex}
-S=results/bake/trained/samples-v11.csv
+S=results/bake/trained/samples-v12.csv
 E=results/bake/trained/samples-eval-paper.csv
 M=results/bake/trained/samples-mesh-v6-radius2.csv
 O=results/profile/trained

@@ -135,13 +135,10 @@ pub fn choose(
         if back.contains(&i) {
             judge.push(v);
         } else {
-            train.push(v.clone());
+            train.push(*v);
         }
     }
-    let test: Vec<_> = judge
-        .iter()
-        .map(|v| (v.camera.clone(), v.image.clone()))
-        .collect();
+    let test: Vec<_> = judge.iter().map(|v| (v.camera, v.image.clone())).collect();
     let hidden: Vec<Option<GrayImage>> = judge.iter().map(|v| others(v)).collect();
     let measure = |cells: u32| -> anyhow::Result<(Candidate, u32)> {
         let t = std::time::Instant::now();
