@@ -115,8 +115,8 @@ fn others(v: &BakeView<'_>) -> Option<GrayImage> {
 /// candidate lattice resolution (`params` otherwise as given; its
 /// `feature_res`, if not 0, is the default the fractions apply to) and
 /// returns the one whose bake `render`s the held-back views best (mean
-/// SSIM; ties to the finer). Errors
-/// when there are too few views to hold one back, or a bake fails.
+/// SSIM; ties to the finer). Errors when there are too few views to
+/// hold one back, or a bake fails.
 pub fn choose(
     field: &dyn RadianceField,
     views: &[BakeView<'_>],
@@ -126,7 +126,7 @@ pub fn choose(
     let back = held_back(views.len());
     if back.is_empty() {
         anyhow::bail!(
-            "choosing the feature lattice needs at least 3 training views, got {}",
+            "--choose-feature-res: choosing the feature lattice needs at least 3 training views (one held back, two to bake from), got {}",
             views.len()
         );
     }
