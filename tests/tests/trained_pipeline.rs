@@ -120,6 +120,107 @@ fn hull_and_trained_bakes_never_share_a_key() {
     );
 }
 
+#[test]
+fn the_store_chooses_each_objects_lattice_once_and_bakes_with_it() {
+    use nerflex_sim::bake::trained::lattice_choice;
+    use nerflex_sim::pipeline::{BakeRequest, TrainedBaker};
+    let dir = tempfile::tempdir().unwrap();
+    let cap = Capture::load(capture(dir.path(), &[ObjectKind::Ball], 32, 8)).unwrap();
+    let views = ObjectViews::from_capture(&cap, None).unwrap();
+    let root = dir.path().join("bakes");
+    let Baker::Trained(t) = tiny_baker() else {
+        unreachable!()
+    };
+    // The default chooses at the sweep's (64, 9); the test at (16, 3).
+    assert_eq!(
+        BakeStore::with_baker(&root, tiny_baker()).lattice_choice_at(),
+        Some(lattice_choice::SWEEP_CONFIG)
+    );
+    let chooser = |at| {
+        BakeStore::with_baker(
+            &root,
+            Baker::Trained(Box::new(TrainedBaker {
+                choose_lattice_at: Some(at),
+                ..(*t).clone()
+            })),
+        )
+    };
+    let chosen = chooser((16, 3));
+    let fixed = BakeStore::with_baker(
+        &root,
+        Baker::trained_fixed_lattice(t.train.clone(), t.bake.clone()),
+    );
+    assert_eq!(fixed.lattice_choice_at(), None);
+    assert!(fixed.lattice(&views, &Quiet).unwrap().is_none());
+    // A chosen lattice is part of the key; where it is chosen too.
+    let keys = [
+        chosen.key(&views, 16, 5, false),
+        fixed.key(&views, 16, 5, false),
+        chooser((16, 5)).key(&views, 16, 5, false),
+    ];
+    assert_ne!(keys[0], keys[1]);
+    assert_ne!(keys[0], keys[2]);
+
+    let lattices = root.join("lattices");
+    let count = || std::fs::read_dir(&lattices).map_or(0, |d| d.count());
+    assert_eq!(count(), 0);
+    let a = chosen
+        .get_or_bake(&BakeRequest::planes(&views, 16, 5), None)
+        .unwrap();
+    assert_eq!(count(), 1, "one choice stored for the object");
+    let l = chosen.lattice(&views, &Quiet).unwrap().unwrap();
+    assert!(l.reused, "the stored choice is read, not made again");
+    assert_eq!(l.object, "ball");
+    // The best held-back SSIM, ties to the finer (candidates finest first).
+    assert!(l.candidates.len() >= 2, "{:?}", l.candidates);
+    let best = l
+        .candidates
+        .iter()
+        .fold(None::<(u32, f64, f64)>, |b, &c| match b {
+            Some(b) if b.1 >= c.1 => Some(b),
+            _ => Some(c),
+        })
+        .unwrap();
+    assert_eq!(l.cells, best.0);
+    // The bake used it, and says so.
+    let json: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(a.dir.parent().unwrap().join("bake.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(json["lattice_res"].as_u64(), Some(u64::from(l.cells)));
+    assert_eq!(
+        json["lattice_choice"]["cells"].as_u64(),
+        Some(u64::from(l.cells))
+    );
+    // Another (g, p) of the object reuses the choice.
+    let b = chosen
+        .get_or_bake(&BakeRequest::planes(&views, 32, 3), None)
+        .unwrap();
+    assert!(!b.cached);
+    assert_eq!(count(), 1);
+    // The fixed store bakes at the given resolution and stores no choice.
+    let Baker::Trained(mut f) = tiny_baker() else {
+        unreachable!()
+    };
+    f.bake.feature_res = 6;
+    let six = BakeStore::with_baker(&root, Baker::trained_fixed_lattice(f.train, f.bake));
+    let c = six
+        .get_or_bake(&BakeRequest::planes(&views, 16, 5), None)
+        .unwrap();
+    let json: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(c.dir.parent().unwrap().join("bake.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(json["lattice_res"].as_u64(), Some(6));
+    assert!(json["lattice_choice"].is_null());
+    assert_eq!(count(), 1);
+
+    // Two training views cannot spare one: the default serves, no error.
+    let few = Capture::load(capture(&dir.path().join("few"), &[ObjectKind::Ball], 32, 2)).unwrap();
+    let few = ObjectViews::from_capture(&few, None).unwrap();
+    assert!(chosen.lattice(&few, &Quiet).unwrap().is_none());
+}
+
 fn tiny_options(store: &Path) -> Options {
     let mut o = Options::reduced(store.to_path_buf());
     o.baker = tiny_baker();

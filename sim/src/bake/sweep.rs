@@ -675,7 +675,8 @@ pub struct TrainedSweep<'a> {
     /// Choose each object's feature lattice first, at this (g, p)
     /// ([`super::trained::lattice_choice`]); the chosen resolution then
     /// serves every configuration of the object (the lattice does not
-    /// depend on g or p). `None`: `params.feature_res` for all.
+    /// depend on g or p). `None`: `params.feature_res` for all, as for an
+    /// object with too few training views to hold one back.
     pub choose_lattice_at: Option<(u32, u32)>,
 }
 
@@ -706,6 +707,80 @@ pub struct SweepReport {
     pub lattices: Vec<LatticeChosen>,
 }
 
+/// The feature lattice of `obj` chosen at `at` = (g, p) from `field`
+/// ([`super::trained::lattice_choice`]; `params` otherwise as given),
+/// from `cache` if chosen before (keyed by the views' content, `field_id`,
+/// the settings and the baker's and measure's versions), else measured
+/// now and stored there. `None` when `obj` has too few training views to
+/// hold one back ([`super::trained::lattice_choice::held_back`]): the
+/// default lattice then serves.
+pub fn chosen_lattice(
+    obj: &ObjectViews,
+    field: &dyn crate::train::field::RadianceField,
+    field_id: &str,
+    params: &super::trained::TrainedParams,
+    at: (u32, u32),
+    cache: Option<&Cache>,
+    render: &RenderFn<'_>,
+) -> anyhow::Result<Option<LatticeChosen>> {
+    if super::trained::lattice_choice::held_back(obj.train.len()).is_empty() {
+        return Ok(None);
+    }
+    let key = lattice_key(obj, field_id, params, at);
+    if let Some(mut c) = cache.and_then(|c| c.get_lattice(&key)) {
+        c.reused = true;
+        return Ok(Some(c));
+    }
+    let (g, p) = at;
+    let mut tp = params.clone();
+    tp.grid = g;
+    tp.patch = p;
+    let views = obj.bake_views();
+    let c = super::trained::lattice_choice::choose(field, &views, &tp, render)
+        .with_context(|| format!("choosing {}'s feature lattice at g={g} p={p}", obj.name))?;
+    let chosen = LatticeChosen {
+        object: obj.name.clone(),
+        cells: c.chosen,
+        candidates: c
+            .candidates
+            .iter()
+            .map(|k| (k.cells, k.ssim, k.psnr))
+            .collect(),
+        reused: false,
+    };
+    if let Some(c) = cache {
+        c.put_lattice(&key, &chosen)?;
+    }
+    Ok(Some(chosen))
+}
+
+/// The cache key of [`chosen_lattice`]'s choice: everything it depends on.
+pub fn lattice_key(
+    obj: &ObjectViews,
+    field_id: &str,
+    params: &super::trained::TrainedParams,
+    at: (u32, u32),
+) -> String {
+    let (g, p) = at;
+    let mut tp = params.clone();
+    tp.grid = g;
+    tp.patch = p;
+    let mut h = Fnv64::default();
+    h.write(&obj.content_hash.to_le_bytes());
+    h.write(
+        format!(
+            "lattice choice v{} {field_id} {:?} {:?} {} {}",
+            super::trained::TRAINED_BAKER_VERSION,
+            tp,
+            obj.search_box,
+            obj.train.len(),
+            MEASURE_VERSION
+        )
+        .as_bytes(),
+    );
+    format!("lattice-{}-g{g}-p{p}-{:016x}", obj.name, h.finish())
+}
+
 /// The trained parameters of object `oi`: the sweep's, with its feature
 /// lattice chosen first if asked (the choice cached beside the samples).
 fn object_params(
@@ -716,59 +791,17 @@ fn object_params(
     render: &RenderFn<'_>,
 ) -> anyhow::Result<(super::trained::TrainedParams, Option<LatticeChosen>)> {
     let mut tp = t.params.clone();
-    let Some((g, p)) = t.choose_lattice_at else {
+    let Some(at) = t.choose_lattice_at else {
         return Ok((tp, None));
     };
     let Some((field, id)) = t.fields.get(oi).zip(t.field_ids.get(oi)) else {
         bail!("no field for object `{}`", obj.name);
     };
-    tp.grid = g;
-    tp.patch = p;
-    let mut h = Fnv64::default();
-    h.write(&obj.content_hash.to_le_bytes());
-    h.write(
-        format!(
-            "lattice choice v{} {id} {:?} {:?} {} {}",
-            super::trained::TRAINED_BAKER_VERSION,
-            tp,
-            obj.search_box,
-            obj.train.len(),
-            MEASURE_VERSION
-        )
-        .as_bytes(),
-    );
-    let key = format!("lattice-{}-g{g}-p{p}-{:016x}", obj.name, h.finish());
-    let stored = cache.and_then(|c| c.get_lattice(&key));
-    let chosen = match stored {
-        Some(mut c) => {
-            c.reused = true;
-            c
-        }
-        None => {
-            let views = obj.bake_views();
-            let c = super::trained::lattice_choice::choose(*field, &views, &tp, render)
-                .with_context(|| {
-                    format!("choosing {}'s feature lattice at g={g} p={p}", obj.name)
-                })?;
-            let chosen = LatticeChosen {
-                object: obj.name.clone(),
-                cells: c.chosen,
-                candidates: c
-                    .candidates
-                    .iter()
-                    .map(|k| (k.cells, k.ssim, k.psnr))
-                    .collect(),
-                reused: false,
-            };
-            if let Some(c) = cache {
-                c.put_lattice(&key, &chosen)?;
-            }
-            chosen
-        }
-    };
-    let mut tp = t.params.clone();
-    tp.feature_res = chosen.cells;
-    Ok((tp, Some(chosen)))
+    let chosen = chosen_lattice(obj, *field, id, &tp, at, cache, render)?;
+    if let Some(c) = &chosen {
+        tp.feature_res = c.cells;
+    }
+    Ok((tp, chosen))
 }
 
 /// Runs the sweep over `objects` × grids × patches.

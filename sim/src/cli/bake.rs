@@ -499,9 +499,12 @@ fn run_sweep(args: &Args) -> anyhow::Result<()> {
             fields: v.iter().map(|(f, _)| f.as_ref()).collect(),
             field_ids: v.iter().map(|(_, id)| id.clone()).collect(),
             params: args.trained.params(0, 0),
+            // Chosen unless fixed by --feature-res (the sweep bakes each
+            // object many times; one choice serves them all).
             choose_lattice_at: args
                 .trained
-                .choose_feature_res
+                .feature_res
+                .is_none()
                 .then_some(crate::bake::trained::lattice_choice::SWEEP_CONFIG),
         }),
         ..opts
@@ -521,6 +524,17 @@ fn run_sweep(args: &Args) -> anyhow::Result<()> {
             if l.reused { ", from the cache" } else { "" },
             scores.join(", ")
         );
+    }
+    if fields.is_some() && args.trained.feature_res.is_none() {
+        for o in &objects {
+            if !report.lattices.iter().any(|l| l.object == o.name) {
+                println!(
+                    "{}: default feature lattice kept: {} training views are too few to hold one back",
+                    o.name,
+                    o.train.len()
+                );
+            }
+        }
     }
     sweep::write_csv(&args.csv, &report.samples)?;
     if let Some(dir) = &args.plots {

@@ -212,17 +212,19 @@ pub struct TrainedArgs {
     #[arg(long, default_value_t = 0)]
     pub carve_rounds: u32,
     /// Cells per edge of the feature lattice the fine-tune learns and the
-    /// texels sample (default 0: one cell per two pixels of the object as
-    /// the training views see it).
-    #[arg(long, default_value_t = 0)]
-    pub feature_res: u32,
+    /// texels sample, fixed (0: one cell per two pixels of the object as
+    /// the training views see it). Default: that resolution for a single
+    /// bake; chosen per object for `--sweep` (see `--choose-feature-res`).
+    #[arg(long, conflicts_with = "choose_feature_res")]
+    pub feature_res: Option<u32>,
     /// Choose the feature lattice's resolution for this object first: bake
     /// from all but every 8th training view at the default resolution and
     /// at a half and a quarter of it, keep the one that renders the held-back
     /// views best (SSIM), then bake from every view with it
-    /// (`bake::trained::lattice_choice`; four bakes in all). With
-    /// `--sweep`: once per object at (64, 9), the choice then serving every
-    /// (g, p) and cached beside the samples.
+    /// (`bake::trained::lattice_choice`; four bakes in all, so a single
+    /// bake does it only when asked). `--sweep` always chooses unless
+    /// `--feature-res` is given: once per object at (64, 9), the choice
+    /// then serving every (g, p) and cached beside the samples.
     #[arg(long)]
     pub choose_feature_res: bool,
     /// Before baking, print how well the extracted geometry's texel points
@@ -280,7 +282,7 @@ impl TrainedArgs {
         p.surface_alpha = self.surface_alpha;
         p.surface_miss = self.surface_miss;
         p.fill_holes = self.fill_holes;
-        p.feature_res = self.feature_res;
+        p.feature_res = self.feature_res.unwrap_or(0);
         p.depth_correct = self.depth_correct;
         p.sampling = match (self.train_supersample, self.no_train_supersample) {
             (true, _) => FinetuneSampling::Supersampled,

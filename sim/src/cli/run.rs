@@ -3,6 +3,7 @@
 //! configurations → render the held-out views → SSIM/PSNR/LPIPS →
 //! simulate on the device — with a progress bar and a short report.
 
+use crate::bake::trained::lattice_choice;
 use crate::baselines::Method;
 use crate::device::Device;
 use crate::eval::scale::{Scale, Sizes};
@@ -78,6 +79,12 @@ pub struct PipelineArgs {
     /// [default: by the scale; run: 3].
     #[arg(long)]
     pub epochs: Option<f32>,
+    /// The trained baker's feature lattice, cells per edge, fixed for every
+    /// object (0: one cell per two pixels of the object). Default: chosen
+    /// per object on training views held back from three bakes at (64, 9),
+    /// kept in STORE/lattices (`bake::trained::lattice_choice`).
+    #[arg(long, value_name = "CELLS")]
+    pub feature_res: Option<u32>,
     /// Grow each dedicated network's crop by this fraction of its object's
     /// larger box side before enlarging [default: 0, the paper's tight
     /// crop]. With 0 no training ray passes just outside the object, so its
@@ -150,8 +157,10 @@ impl PipelineArgs {
     /// The baker the flags choose, with `scale`'s settings where no flag
     /// overrides them.
     fn baker_at(&self, scale: Scale) -> anyhow::Result<Baker> {
-        let trained_flags =
-            !self.train_levels.is_empty() || self.train_batch.is_some() || self.epochs.is_some();
+        let trained_flags = !self.train_levels.is_empty()
+            || self.train_batch.is_some()
+            || self.epochs.is_some()
+            || self.feature_res.is_some();
         let name = self
             .baker
             .unwrap_or(if trained_flags || scale != Scale::Quick {
@@ -161,7 +170,7 @@ impl PipelineArgs {
             });
         match name {
             BakerName::Hull if trained_flags => bail!(
-                "--train-levels, --train-batch and --epochs are for --baker trained, not --baker hull"
+                "--train-levels, --train-batch, --epochs and --feature-res are for --baker trained, not --baker hull"
             ),
             BakerName::Hull => Ok(Baker::Hull),
             BakerName::Trained => {
@@ -182,7 +191,18 @@ impl PipelineArgs {
                     }
                     bake.finetune.epochs = e;
                 }
-                Ok(Baker::trained(train, bake))
+                Ok(match self.feature_res {
+                    Some(cells) => {
+                        bake.feature_res = cells;
+                        // The settings are checked per bake; this one
+                        // before anything trains.
+                        let mut at = bake.clone();
+                        (at.grid, at.patch) = lattice_choice::SWEEP_CONFIG;
+                        at.validate().map_err(anyhow::Error::msg)?;
+                        Baker::trained_fixed_lattice(train, bake)
+                    }
+                    None => Baker::trained(train, bake),
+                })
             }
         }
     }
@@ -434,7 +454,19 @@ mod tests {
             vec![Level { res: 32, iters: 10 }, Level { res: 48, iters: 20 }]
         );
         assert_eq!(t.bake.finetune.epochs, 0.5);
+        // Each object's lattice chosen unless --feature-res fixes it.
+        assert_eq!(t.choose_lattice_at, Some(lattice_choice::SWEEP_CONFIG));
+        let o = options(&["--feature-res", "40"]).unwrap();
+        let Baker::Trained(t) = &o.baker else {
+            panic!("not trained: {:?}", o.baker)
+        };
+        assert_eq!((t.choose_lattice_at, t.bake.feature_res), (None, 40));
         for (flags, name) in [
+            (&["--feature-res", "2"][..], "--feature-res"),
+            (
+                &["--baker", "hull", "--feature-res", "40"][..],
+                "--feature-res",
+            ),
             (&["--baker", "fancy"][..], "fancy"),
             (&["--baker", "hull", "--epochs", "1"][..], "--baker hull"),
             (&["--train-levels", "64"][..], "RES:STEPS"),

@@ -37,7 +37,9 @@ use super::fields::{FieldStore, StoredField};
 use super::stages::{Progress, Quiet};
 use crate::asset::Asset;
 use crate::bake::sweep::{self, Cache, Fnv64, ObjectViews, Sample};
-use crate::bake::trained::{self, GeometryKind, TrainedParams, TRAINED_BAKER_VERSION};
+use crate::bake::trained::{
+    self, lattice_choice, GeometryKind, TrainedParams, TRAINED_BAKER_VERSION,
+};
 use crate::bake::{self, BakeParams, BakedObject};
 use crate::geometry::Geometry;
 use crate::metrics::Lpips;
@@ -77,12 +79,35 @@ pub struct TrainedBaker {
     pub train: TrainSettings,
     /// How a field is baked; its `grid` and `patch` are set per bake.
     pub bake: TrainedParams,
+    /// Choose each object's feature lattice first, at this (g, p), on
+    /// training views held back from the bake
+    /// ([`crate::bake::trained::lattice_choice`]; kept in `ROOT/lattices/`
+    /// and serving every bake of the object); `None`: `bake.feature_res`.
+    /// An object with fewer than three training views keeps the default.
+    pub choose_lattice_at: Option<(u32, u32)>,
 }
 
 impl Baker {
-    /// The trained baker with these settings.
+    /// The trained baker with these settings, each object's feature
+    /// lattice chosen first at [`lattice_choice::SWEEP_CONFIG`] (the
+    /// default since session 37: ball +0.0058 SSIM over its whole sweep,
+    /// lego keeps its default; docs/baking.md, "Session 36").
     pub fn trained(train: TrainSettings, bake: TrainedParams) -> Baker {
-        Baker::Trained(Box::new(TrainedBaker { train, bake }))
+        Baker::Trained(Box::new(TrainedBaker {
+            train,
+            bake,
+            choose_lattice_at: Some(lattice_choice::SWEEP_CONFIG),
+        }))
+    }
+
+    /// The trained baker with `bake`'s feature lattice for every object
+    /// (no choice; `bake.feature_res` 0 is the default resolution).
+    pub fn trained_fixed_lattice(train: TrainSettings, bake: TrainedParams) -> Baker {
+        Baker::Trained(Box::new(TrainedBaker {
+            train,
+            bake,
+            choose_lattice_at: None,
+        }))
     }
 
     /// Its name in reports: [`HULL_BAKER`] or [`TRAINED_BAKER`].
@@ -318,14 +343,16 @@ impl BakeStore {
                             continue;
                         }
                         seen.push(views);
-                        if self.fields.contains(views, &t.train) {
-                            continue;
+                        if !self.fields.contains(views, &t.train) {
+                            match self.field(views, progress) {
+                                Ok(f) if f.trained_now => trained.push((i, f.train_s)),
+                                Ok(_) => {}
+                                Err(e) => return Err(e),
+                            }
                         }
-                        match self.field(views, progress) {
-                            Ok(f) if f.trained_now => trained.push((i, f.train_s)),
-                            Ok(_) => {}
-                            Err(e) => return Err(e),
-                        }
+                        // Its lattice too: one choice, before the bakes
+                        // that read it run side by side.
+                        self.lattice(views, progress)?;
                     }
                 }
                 self.bake_group(reqs, &unique, jobs, lpips, progress, label, &mut results);
@@ -578,7 +605,66 @@ impl BakeStore {
             )
             .as_bytes(),
         );
+        // Only a chosen lattice adds to the key: a fixed one's entries keep
+        // the keys they had. (The choice is a function of the field, the
+        // views and the settings, all in the key already.)
+        if let Some(at) = self.lattice_choice_at() {
+            h.write(format!("lattice chosen at {at:?}").as_bytes());
+        }
         format!("{}-g{g}-p{p}{tag}-t{:016x}", obj.name, h.finish())
+    }
+
+    /// Where the trained baker chooses each object's feature lattice
+    /// (`None`: the hull, or a fixed lattice).
+    pub fn lattice_choice_at(&self) -> Option<(u32, u32)> {
+        match &self.baker {
+            Baker::Trained(t) => t.choose_lattice_at,
+            Baker::Hull => None,
+        }
+    }
+
+    /// The folder of the lattice choices (`ROOT/lattices/`).
+    fn lattices(&self) -> Cache {
+        Cache::new(self.root.join("lattices"))
+    }
+
+    /// The feature lattice chosen for `obj`: from `ROOT/lattices/`, or
+    /// chosen now (its field trained or loaded first, then three bakes at
+    /// the choice's (g, p), [`sweep::chosen_lattice`]). `None` for the
+    /// hull, a fixed lattice, or an object with fewer than three training
+    /// views.
+    pub fn lattice(
+        &self,
+        obj: &ObjectViews,
+        progress: &dyn Progress,
+    ) -> anyhow::Result<Option<sweep::LatticeChosen>> {
+        let (Baker::Trained(t), Some(at)) = (&self.baker, self.lattice_choice_at()) else {
+            return Ok(None);
+        };
+        if lattice_choice::held_back(obj.train.len()).is_empty() {
+            return Ok(None);
+        }
+        let field_id = FieldStore::key(obj, &t.train);
+        let cache = self.lattices();
+        // A stored choice needs no field in memory.
+        if let Some(mut c) = cache.get_lattice(&sweep::lattice_key(obj, &field_id, &t.bake, at)) {
+            c.reused = true;
+            return Ok(Some(c));
+        }
+        let field = self.field(obj, progress)?;
+        progress.note(&format!(
+            "choosing the feature lattice of {} at g={} p={}",
+            obj.name, at.0, at.1
+        ));
+        sweep::chosen_lattice(
+            obj,
+            field.grid.as_ref(),
+            &field_id,
+            &t.bake,
+            at,
+            Some(&cache),
+            &sweep::fixed_point_render,
+        )
     }
 
     /// The trained field of `obj` (the trained baker only): the one used
@@ -658,8 +744,12 @@ impl BakeStore {
                     .with_context(|| format!("baking {} at g={g} p={p}", obj.name))?;
                 (baked, None, (0.0, 0.0), false)
             }
-            Some((_, params)) => {
+            Some((_, mut params)) => {
                 self.check_trained(r)?;
+                let lattice = self.lattice(obj, progress)?;
+                if let Some(l) = &lattice {
+                    params.feature_res = l.cells;
+                }
                 let field = self.field(obj, progress)?;
                 progress.note(&format!("baking {} from its field", r.describe()));
                 let views = obj.bake_views();
@@ -671,7 +761,7 @@ impl BakeStore {
                             field.path.display()
                         )
                     })?;
-                let details = trained_details(&tb.stats, &field, r.geometry);
+                let details = trained_details(&tb.stats, &field, r.geometry, lattice.as_ref());
                 let field_s = (field.train_s, field.load_s);
                 (tb.baked, Some(details), field_s, field.trained_now)
             }
@@ -761,10 +851,13 @@ fn trained_details(
     s: &trained::TrainedStats,
     field: &StoredField,
     geometry: Geometry,
+    lattice: Option<&sweep::LatticeChosen>,
 ) -> serde_json::Value {
     let t = &s.times;
     serde_json::json!({
         "geometry": geometry,
+        "lattice_res": s.lattice_res,
+        "lattice_choice": lattice,
         "baker": TRAINED_BAKER,
         "baker_version": TRAINED_BAKER_VERSION,
         "field": field.key,
