@@ -23,6 +23,14 @@
 //! settings to the hull key's inputs and has another shape
 //! (`<name>-g<g>-p<p>-t<hash>`), so the two bakers never share an entry.
 //!
+//! **Feature lattice.** By default the trained baker chooses each object's
+//! feature lattice once, on training views held back from three bakes at
+//! (64, 9) ([`crate::bake::trained::lattice_choice`]), keeps the choice in
+//! `ROOT/lattices/` and bakes every configuration of the object with it;
+//! such keys add where the lattice was chosen. A fixed lattice
+//! ([`Baker::trained_fixed_lattice`], `--feature-res N`) keeps the keys
+//! of before.
+//!
 //! **Geometry.** A request names its [`Geometry`]. A planes bake (every
 //! bake before the geometry was part of a request) keeps exactly the key
 //! and folder it had, so stored entries stay valid. A mesh bake comes from
@@ -746,11 +754,13 @@ impl BakeStore {
             }
             Some((_, mut params)) => {
                 self.check_trained(r)?;
+                // The field first: its training time is this bake's to
+                // report (the choice then finds it in memory).
+                let field = self.field(obj, progress)?;
                 let lattice = self.lattice(obj, progress)?;
                 if let Some(l) = &lattice {
                     params.feature_res = l.cells;
                 }
-                let field = self.field(obj, progress)?;
                 progress.note(&format!("baking {} from its field", r.describe()));
                 let views = obj.bake_views();
                 let tb =
