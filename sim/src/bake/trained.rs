@@ -985,7 +985,7 @@ pub fn bake(
         let r = visibility::prune(
             &mut geo,
             p,
-            &peeled.pixels,
+            &peeled.views,
             grid,
             &mlp,
             supersample,

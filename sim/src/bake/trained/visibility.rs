@@ -56,10 +56,10 @@ pub struct PeelPixel {
 /// The two-layer G-buffers of every training view.
 #[derive(Debug, Clone, Default)]
 pub struct Peel {
-    /// Covered pixels, view after view.
-    pub pixels: Vec<PeelPixel>,
-    /// Covered pixels per view.
-    pub per_view: Vec<usize>,
+    /// Covered pixels, one vector per view: as the views' workers made
+    /// them, never concatenated (on lego (128, 17) that copy was 1.3 GB of
+    /// fresh pages a round).
+    pub views: Vec<Vec<PeelPixel>>,
     /// Tiles drawn, and those whose layer behind one draw could not
     /// decide and a peeling pass redrew ([`TwoLayers::resolve`]).
     pub tiles: (u64, u64),
@@ -354,21 +354,31 @@ pub fn peel(
             Ok((out, tiles))
         })
         .collect();
-    let per: Vec<ViewLayers> = per.into_iter().collect::<Result<_, _>>()?;
-    // One copy into a buffer of the final size (not a doubling one's).
     let mut all = Peel::default();
-    all.pixels
-        .reserve_exact(per.iter().map(|(r, _)| r.len()).sum());
     for r in per {
-        let (r, tiles) = r;
-        all.per_view.push(r.len());
-        all.pixels.extend(r);
+        let (r, tiles) = r?;
+        all.views.push(r);
         all.tiles = (all.tiles.0 + tiles.0, all.tiles.1 + tiles.1);
     }
     Ok(all)
 }
 
 impl Peel {
+    /// Covered pixels of all views.
+    pub fn len(&self) -> usize {
+        self.views.iter().map(Vec::len).sum()
+    }
+
+    /// Whether no view has a covered pixel.
+    pub fn is_empty(&self) -> bool {
+        self.views.iter().all(Vec::is_empty)
+    }
+
+    /// Every covered pixel, view after view.
+    pub fn pixels(&self) -> impl Iterator<Item = &PeelPixel> {
+        self.views.iter().flatten()
+    }
+
     /// The G-buffers once the texels `opacity` marks transparent are gone:
     /// where a subsample's front texel went, the texel behind it shows
     /// (exact while that one stays; where both went the subsample counts
@@ -378,20 +388,14 @@ impl Peel {
     /// number of subsamples that lost both layers.
     pub fn gbuffers(&self, opacity: &[bool], supersample: bool) -> (gbuffer::GBuffers, u64) {
         let opaque = |t: u32| opacity.get(t as usize) == Some(&true);
-        let mut starts = Vec::with_capacity(self.per_view.len());
-        let mut at = 0;
-        for &n in &self.per_view {
-            starts.push(at);
-            at += n;
-        }
         type ViewPart = (Vec<gbuffer::GPixel>, Vec<Subsamples>, Vec<u32>, u64);
-        let parts: Vec<ViewPart> = starts
+        let parts: Vec<ViewPart> = self
+            .views
             .par_iter()
-            .zip(&self.per_view)
-            .map(|(&at, &n)| {
+            .map(|view| {
                 let (mut pixels, mut subs, mut background, mut lost) =
                     (Vec::new(), Vec::new(), Vec::new(), 0u64);
-                for px in &self.pixels[at..at + n] {
+                for px in view {
                     let mut shown = [NO_TEXEL; SUBSAMPLES];
                     let mut k = 0;
                     for ((&f, &b), &n) in px.front.iter().zip(&px.behind).zip(&px.nearer) {
@@ -452,7 +456,7 @@ impl Peel {
     /// layer behind lies on it.
     pub fn behind_quads(&self, nq: usize, p2: usize) -> Vec<bool> {
         let mut on = vec![false; nq];
-        for &t in self.pixels.iter().flat_map(|px| &px.behind) {
+        for &t in self.pixels().flat_map(|px| &px.behind) {
             if let Some(q) = on.get_mut(t as usize / p2.max(1)) {
                 *q = true;
             }
@@ -476,8 +480,9 @@ impl Peel {
             *t = q * p2 as u32 + *t % p2 as u32;
             0
         };
-        self.pixels
+        self.views
             .par_iter_mut()
+            .flat_map(|v| v.par_iter_mut())
             .map(|px| {
                 px.front.iter_mut().map(map).sum::<u64>();
                 px.nearer.iter_mut().map(map).sum::<u64>();
@@ -494,12 +499,12 @@ fn texel_bytes(
     geo: &Geometry,
     p: u32,
     grid: &FeatureGrid,
-    pixels: &[PeelPixel],
+    views: &[Vec<PeelPixel>],
 ) -> (Vec<[u8; FEATURES]>, Vec<bool>) {
     let needed: Vec<AtomicBool> = (0..geo.opacity.len())
         .map(|_| AtomicBool::new(false))
         .collect();
-    pixels.par_iter().for_each(|px| {
+    views.par_iter().flat_map(|v| v.par_iter()).for_each(|px| {
         for &t in px.front.iter().chain(&px.behind).chain(&px.nearer) {
             if let Some(n) = needed.get(t as usize) {
                 n.store(true, Ordering::Relaxed);
@@ -645,30 +650,32 @@ fn job_errors_best(
 /// does not depend on the order the threads add in).
 const DELTA_UNIT: f64 = (1u64 << 32) as f64;
 
-/// One round: judges every texel `pixels` show first and makes the ones
-/// whose removal lowers their pixels' error transparent in `geo`; with
+/// One round: judges every texel the pixels of `views` show first and
+/// makes the ones whose removal lowers their pixels' error transparent in
+/// `geo`; with
 /// `settings.grow`, also every transparent texel they show nearer, and
 /// makes the ones whose addition lowers the error by more than its margin
 /// opaque.
 pub fn prune(
     geo: &mut Geometry,
     p: u32,
-    pixels: &[PeelPixel],
+    views: &[Vec<PeelPixel>],
     grid: &FeatureGrid,
     mlp: &MlpWeights,
     supersample: bool,
     settings: &VisibilitySettings,
 ) -> VisibilityReport {
     let samples = if supersample { SUBSAMPLES } else { 1 };
-    let (bytes, readable) = texel_bytes(geo, p, grid, pixels);
+    let (bytes, readable) = texel_bytes(geo, p, grid, views);
     // Per texel: the summed change of squared error, and whether a pixel
     // shows it.
     let delta: Vec<AtomicI64> = (0..geo.opacity.len()).map(|_| AtomicI64::new(0)).collect();
     let shown: Vec<AtomicBool> = (0..geo.opacity.len())
         .map(|_| AtomicBool::new(false))
         .collect();
-    let before: f64 = pixels
-        .par_chunks(1024)
+    let before: f64 = views
+        .par_iter()
+        .flat_map(|v| v.par_chunks(1024))
         .map(|chunk| {
             // Every shading of the chunk's pixels: the pixel as it is,
             // then once per texel it shows, without it.
@@ -779,7 +786,7 @@ pub fn prune(
         );
     let [shown_texels, nearer_texels, removed_texels, added_texels] = counts;
     VisibilityReport {
-        pixels: pixels.len() as u64,
+        pixels: views.iter().map(|v| v.len() as u64).sum(),
         error_before: before,
         shown_texels,
         nearer_texels,
@@ -876,8 +883,7 @@ mod tests {
         for supersample in [false, true] {
             let peeled = peel(&geo, p, &views, supersample, false).unwrap();
             assert!(peeled
-                .pixels
-                .iter()
+                .pixels()
                 .any(|px| px.front[0] < 9 && px.behind[0] >= 9));
             // Front texels 0 and 4 go: exact. Then also the back quad's
             // centre, behind them: lost where both go.
@@ -901,8 +907,8 @@ mod tests {
             holed.opacity[4] = false;
             holed.opacity[0] = false;
             let peeled = peel(&holed, p, &views, supersample, true).unwrap();
-            assert!(peeled.pixels.iter().any(|px| px.nearer.contains(&4)));
-            assert!(peeled.pixels.iter().all(|px| px
+            assert!(peeled.pixels().any(|px| px.nearer.contains(&4)));
+            assert!(peeled.pixels().all(|px| px
                 .nearer
                 .iter()
                 .all(|&t| t == NO_TEXEL || !holed.opacity[t as usize])));
@@ -914,8 +920,7 @@ mod tests {
             // Without growing, no nearer texels.
             let plain = peel(&holed, p, &views, supersample, false).unwrap();
             assert!(plain
-                .pixels
-                .iter()
+                .pixels()
                 .all(|px| px.nearer.iter().all(|&t| t == NO_TEXEL)));
         }
     }
@@ -997,14 +1002,16 @@ mod tests {
     fn the_quads_behind_are_those_some_layer_behind_lies_on() {
         // p = 2: texels 0–3 on quad 0, 4–7 on quad 1, 8–11 on quad 2.
         let peel = Peel {
-            pixels: vec![
-                removal_pixel(0, 9, [1.0; 3]),
-                removal_pixel(1, NO_TEXEL, [1.0; 3]),
-                removal_pixel(5, 11, [1.0; 3]),
+            views: vec![
+                vec![
+                    removal_pixel(0, 9, [1.0; 3]),
+                    removal_pixel(1, NO_TEXEL, [1.0; 3]),
+                ],
+                vec![removal_pixel(5, 11, [1.0; 3])],
             ],
-            per_view: vec![3],
             tiles: (1, 0),
         };
+        assert_eq!((peel.len(), peel.is_empty()), (3, false));
         assert_eq!(peel.behind_quads(4, 4), [false, false, true, false]);
         // A texel past the quads counted is ignored.
         assert_eq!(peel.behind_quads(2, 4), [false, false]);
@@ -1103,7 +1110,15 @@ mod tests {
             keep_behind: false,
             keep_novel: false,
         };
-        let r = prune(&mut geo, p, &pixels, &grid, &mlp(), false, &settings);
+        let r = prune(
+            &mut geo,
+            p,
+            &[pixels.to_vec()],
+            &grid,
+            &mlp(),
+            false,
+            &settings,
+        );
         assert_eq!((r.nearer_texels, r.added_texels), (3, 1), "{r:?}");
         assert_eq!(
             geo.opacity,
@@ -1128,7 +1143,7 @@ mod tests {
             cov: 255,
         }];
         let shade = |t: u32| {
-            let (b, _) = texel_bytes(&geo, p, &grid, &every);
+            let (b, _) = texel_bytes(&geo, p, &grid, &[every.to_vec()]);
             let f = std::array::from_fn(|c| net::decode(c, b[t as usize][c]));
             let y = net::to_u8(net::forward(&mlp, &net::input(&f, [0.0, 0.0, 1.0])).y);
             y.map(|v| f32::from(v) / 255.0)
@@ -1153,7 +1168,7 @@ mod tests {
             ..Default::default()
         };
         let mut g = geo.clone();
-        let r = prune(&mut g, p, &pixels, &grid, &mlp, false, &settings);
+        let r = prune(&mut g, p, &[pixels.to_vec()], &grid, &mlp, false, &settings);
         assert_eq!(r.pixels, 6);
         assert_eq!(r.shown_texels, 4);
         assert_eq!(
@@ -1164,7 +1179,15 @@ mod tests {
         assert!(r.error_change < 0.0);
         // A margin above a texel's gain keeps it.
         settings.margin = 10.0;
-        let r = prune(&mut geo, p, &pixels, &grid, &mlp, false, &settings);
+        let r = prune(
+            &mut geo,
+            p,
+            &[pixels.to_vec()],
+            &grid,
+            &mlp,
+            false,
+            &settings,
+        );
         assert_eq!(r.removed_texels, 0);
         assert!(geo.opacity.iter().all(|&o| o));
     }
@@ -1187,11 +1210,27 @@ mod tests {
             ..Default::default()
         };
         let mut alone = geo.clone();
-        let r = prune(&mut alone, p, &hiding, &grid, &mlp(), false, &settings);
+        let r = prune(
+            &mut alone,
+            p,
+            &[hiding.to_vec()],
+            &grid,
+            &mlp(),
+            false,
+            &settings,
+        );
         assert_eq!(r.removed_texels, 0, "{r:?}");
         settings.block = 2;
         let mut blocked = geo.clone();
-        let r = prune(&mut blocked, p, &hiding, &grid, &mlp(), false, &settings);
+        let r = prune(
+            &mut blocked,
+            p,
+            &[hiding.to_vec()],
+            &grid,
+            &mlp(),
+            false,
+            &settings,
+        );
         assert_eq!(r.removed_texels, 2, "{r:?}");
         assert_eq!(
             blocked.opacity,
@@ -1200,7 +1239,15 @@ mod tests {
         // Texel 2, in the same block, is what the photos show there.
         let mixed = [hiding[0], hiding[1], px(2, 6, dark)];
         let mut kept = geo.clone();
-        let r = prune(&mut kept, p, &mixed, &grid, &mlp(), false, &settings);
+        let r = prune(
+            &mut kept,
+            p,
+            &[mixed.to_vec()],
+            &grid,
+            &mlp(),
+            false,
+            &settings,
+        );
         assert_eq!(r.removed_texels, 0, "{r:?}");
         // The sums themselves: same state and shown only, per block.
         let d = [-1.0, -2.0, 4.0, 8.0, 16.0, 0.0, 0.0, 0.0];
