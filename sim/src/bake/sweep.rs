@@ -726,11 +726,10 @@ pub fn chosen_lattice(
     if super::trained::lattice_choice::held_back(obj.train.len()).is_empty() {
         return Ok(None);
     }
-    let key = lattice_key(obj, field_id, params, at);
-    if let Some(mut c) = cache.and_then(|c| c.get_lattice(&key)) {
-        c.reused = true;
+    if let Some(c) = cache.and_then(|c| stored_lattice(obj, field_id, params, at, c)) {
         return Ok(Some(c));
     }
+    let key = lattice_key(obj, field_id, params, at);
     let (g, p) = at;
     let mut tp = params.clone();
     tp.grid = g;
@@ -752,6 +751,20 @@ pub fn chosen_lattice(
         c.put_lattice(&key, &chosen)?;
     }
     Ok(Some(chosen))
+}
+
+/// [`chosen_lattice`]'s choice if `cache` holds it (marked reused): no
+/// field needed.
+pub fn stored_lattice(
+    obj: &ObjectViews,
+    field_id: &str,
+    params: &super::trained::TrainedParams,
+    at: (u32, u32),
+    cache: &Cache,
+) -> Option<LatticeChosen> {
+    let mut c = cache.get_lattice(&lattice_key(obj, field_id, params, at))?;
+    c.reused = true;
+    Some(c)
 }
 
 /// The cache key of [`chosen_lattice`]'s choice: everything it depends on.

@@ -655,8 +655,7 @@ impl BakeStore {
         let field_id = FieldStore::key(obj, &t.train);
         let cache = self.lattices();
         // A stored choice needs no field in memory.
-        if let Some(mut c) = cache.get_lattice(&sweep::lattice_key(obj, &field_id, &t.bake, at)) {
-            c.reused = true;
+        if let Some(c) = sweep::stored_lattice(obj, &field_id, &t.bake, at, &cache) {
             return Ok(Some(c));
         }
         let field = self.field(obj, progress)?;
