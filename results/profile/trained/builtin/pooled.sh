@@ -9,7 +9,7 @@ N="$(realpath "${1:-target/release/nerflex}")"
 S="$HERE/../../../bake/trained/builtin"
 T="$(mktemp)"
 trap 'rm -f "$T"' EXIT
-SWEEPS="ball-eval-budget-choose-v12 vase-eval-budget-choose-v12 box-eval-budget-choose-v12 torus-eval-budget-choose-v12 mug-eval-budget-choose-v12 pawn-eval-budget-v12"
+SWEEPS="ball-eval-budget-choose-v12 vase-eval-budget-choose-v12 box-eval-budget-choose-v12 torus-eval-budget-choose-v12 mug-eval-budget-choose-v12 spring-eval-budget-choose-v12 pawn-eval-budget-v12"
 first=1
 for s in $SWEEPS; do
   if [ $first = 1 ]; then cat "$S/$s.csv"; first=0; else tail -n +2 "$S/$s.csv"; fi
