@@ -8,10 +8,13 @@ HERE="$(cd "$(dirname "$0")" && pwd)"
 N="$(realpath "${1:-target/release/nerflex}")"
 S="$HERE/../../../bake/trained/builtin"
 T="$(mktemp)"
-trap 'rm -f "$T"' EXIT
+O="$(mktemp)"
+trap 'rm -f "$T" "$O"' EXIT
 SWEEPS="ball-eval-budget-choose-v12 vase-eval-budget-choose-v12 box-eval-budget-choose-v12 torus-eval-budget-choose-v12 mug-eval-budget-choose-v12 spring-eval-budget-choose-v12 pawn-eval-budget-v12"
 first=1
 for s in $SWEEPS; do
   if [ $first = 1 ]; then cat "$S/$s.csv"; first=0; else tail -n +2 "$S/$s.csv"; fi
 done > "$T"
-"$N" profile accuracy --samples "$T" --train-on variable-step > "$HERE/accuracy_variable_step-builtin-v12.txt"
+# Into a temporary file first: a failed run leaves the committed table as it was.
+"$N" profile accuracy --samples "$T" --train-on variable-step > "$O"
+mv "$O" "$HERE/accuracy_variable_step-builtin-v12.txt"
