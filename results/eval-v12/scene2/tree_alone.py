@@ -1,3 +1,9 @@
+#!/usr/bin/env python3
+"""Session 40's experiment, kept as run (its paths are that session's work folders, out of git):
+Scene 2's shared (tree) network rendered alone from the scene's 12 held-out cameras at the
+configurations DP and Fairness chose, and the squared error on the tree's pixels (instance
+mask) against the ground truth, beside the same pixels in the whole-scene renders.
+Output: tree-alone.md. Needs the scene's eval work folder and the store."""
 import json, os, subprocess, sys
 sys.path.insert(0, '/work/main/results/bake/trained/builtin/session38')
 import png_rgb as png

@@ -9,7 +9,7 @@ box of the group's objects (mask != 0, 4 px margin, as the report's in-box
 SSIM), and scores the crops with `nerflex metrics`. Prints per entry the
 whole-frame SSIM the profiler measured (sample.json) and the in-box mean."""
 import json, os, subprocess, sys, tempfile
-sys.path.insert(0, '/work/main/results/bake/trained/builtin/session38')
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '../../bake/trained/builtin/session38'))
 import png_rgb as png
 
 nerflex, group, stores = sys.argv[1], sys.argv[2], sys.argv[3:]
