@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
 """Does the DP's objective predict the scene's SSIM? (session 40)
 
-usage: objective_check.py EVAL.json WORK_DIR
-WORK_DIR is the eval run's --out folder (scenes/<scene>/segment/segmentation.json
-gives each group's mean zoom: a dedicated network's crop is its object
-enlarged ×zoom; the shared network's views are the original frames, zoom 1).
+usage: objective_check.py EVAL.json SEG_DIR
+SEG_DIR holds each scene's segmentation.json as <scene>.json (this folder's
+segmentation/, copied from the run's scenes/<scene>/segment/): its groups'
+mean zoom says how much a dedicated network's crop enlarges its object; the
+shared network's views are the original frames, zoom 1.
 For each scene, device and baseline selector, compares the measured
 difference of whole-scene SSIM (selector − DP) with two predictions from
 the networks' own measured SSIM at the realised plans:
@@ -16,10 +17,10 @@ agreement with the measurement."""
 import json, math, sys
 
 d = json.load(open(sys.argv[1]))
-work = sys.argv[2]
+seg_dir = sys.argv[2]
 rows_out, meas, eqs, zs = [], [], [], []
 for sc in d['scenes']:
-    seg = json.load(open(f"{work}/scenes/{sc['scene']}/segment/segmentation.json"))
+    seg = json.load(open(f"{seg_dir}/{sc['scene']}.json"))
     zoom = {g['folder']: g.get('mean_zoom', 1.0) for g in seg['groups']}
     for dev in ('iphone13', 'pixel4'):
         r = {x['method']: x for x in sc['rows'] if x['device'] == dev}

@@ -6,7 +6,8 @@ GROUP_DIR is an eval work folder's segment/<group> (test/r_N.png, r_N_mask.png,
 transforms_test.json); each STORE_DIR a store entry (asset/, sample.json).
 Renders each entry from every held-out view, crops render and truth to the
 box of the group's objects (mask != 0, 4 px margin, as the report's in-box
-SSIM), and scores the crops with `nerflex metrics`. Prints per entry the
+SSIM, `pipeline::views::object_box`, without its 16-px minimum side), and
+scores the crops with `nerflex metrics`. Prints per entry the
 whole-frame SSIM the profiler measured (sample.json) and the in-box mean."""
 import json, os, subprocess, sys, tempfile
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '../../bake/trained/builtin/session38'))
@@ -42,10 +43,7 @@ for st in stores:
         img = png.read(r)
         rc = os.path.join(tmp, 'rc.png')
         png.write(rc, [row[b[2]:b[3]] for row in img[b[0]:b[1]]])
-        out = subprocess.run([nerflex, 'metrics', '--json', rc, truths[v], '--lpips-weights', '/nonexistent'],
-                             capture_output=True, text=True)
-        if out.returncode:
-            out = subprocess.run([nerflex, 'metrics', '--json', rc, truths[v]], capture_output=True, text=True, check=True)
+        out = subprocess.run([nerflex, 'metrics', '--json', rc, truths[v]], capture_output=True, text=True, check=True)
         j = json.loads(out.stdout)
         ss.append(j['ssim']); ps.append(j['psnr'])
     g, p = s.get('g', bake.get('grid')), s.get('p', bake.get('patch'))
