@@ -21,6 +21,10 @@
 //! | `single` | Single-NeRF: one network for the whole scene at (128, 17) |
 //! | `brute` | exhaustive search (small cases; used by the tests) |
 //!
+//! Each maximises the sum of the objects' predicted SSIM (the paper's
+//! objective) unless given per-object weights ([`plan_weighted`],
+//! [`Objective::Area`]: each network counted per pixel of the frame).
+//!
 //! `block` and `single` do not optimise: they always return their plan,
 //! with `feasible: false` when it does not fit. The others return an error
 //! when they find no feasible plan.
@@ -38,10 +42,12 @@ mod dp;
 mod fairness;
 mod fixed;
 mod greedy;
+mod objective;
 mod problem;
 mod slsqp;
 
 pub use fixed::effective_grid;
+pub use objective::{plan_weighted, Objective};
 
 use crate::geometry::Geometry;
 use crate::scene_file::Scene;

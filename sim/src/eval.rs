@@ -610,6 +610,17 @@ fn settings(opts: &EvalOptions, lpips: bool) -> Vec<(String, String)> {
             },
         ),
         (
+            "selector objective".into(),
+            match p.objective {
+                crate::baselines::Objective::Mean => {
+                    "the sum of each network's predicted SSIM on its own views (the paper's)".into()
+                }
+                crate::baselines::Objective::Area => {
+                    "each network's predicted SSIM weighted by 1 / zoom² (`--objective area`; predicted SSIM reported unweighted)".into()
+                }
+            },
+        ),
+        (
             "intervals".into(),
             format!(
                 "95 % percentile bootstrap over the held-out views, {} resamples, seed {}",

@@ -286,6 +286,7 @@ fn a_plan_with_one_mesh_object_realises_it_as_a_mesh_export() {
         sample_bakes: (0, 0),
         scene_json: prepared.scene_json.clone(),
         baker: trained.baker.name().to_string(),
+        objective: trained.objective.name().to_string(),
         times: pipeline::RunTimes::default(),
         ranges: vec![],
     };

@@ -119,6 +119,7 @@ fn tiny_scene_end_to_end() {
         sample_bakes: (0, 0),
         scene_json: prepared.scene_json.clone(),
         baker: opts.baker.name().to_string(),
+        objective: opts.objective.name().to_string(),
         times: pipeline::RunTimes::default(),
         ranges: pipeline::range::ranges(&again.samples),
     };

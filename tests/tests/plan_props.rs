@@ -3,7 +3,7 @@
 //! 10 GB, budgets from 0 to u64::MAX.
 
 use nerflex_core::units::{Bytes, QualityQ};
-use nerflex_sim::baselines::{plan, Budget, Method, Plan, PlanError};
+use nerflex_sim::baselines::{plan, plan_weighted, Budget, Method, Plan, PlanError};
 use nerflex_sim::geometry::Geometry;
 use nerflex_sim::scene_file::{ConfigEntry, Scene, SceneObject};
 use proptest::prelude::*;
@@ -306,6 +306,55 @@ proptest! {
                 let u = union.as_ref().map_err(|e| TestCaseError::fail(format!("{g} alone plans but the union fails: {e}")))?;
                 prop_assert!(u.total_quality_q >= a.total_quality_q, "{} alone {} beat the union {}", g, a.total_quality, u.total_quality);
             }
+        }
+    }
+
+    /// Weighted objectives (`--objective area`): the DP stays within the
+    /// budget, reports the scene's unweighted qualities, and its weighted
+    /// sum is the exhaustive optimum of the weighted problem (in budget
+    /// units, to the fixed point's rounding of each weighted quality).
+    #[test]
+    fn weighted_dp_is_the_weighted_optimum_and_reports_unweighted_quality(
+        ((scene, budget), weights) in scene_and_budget(4, 5_000, 8).prop_flat_map(|(s, b)| {
+            let n = s.objects.len();
+            (Just((s, b)), prop::collection::vec(1u32..=1_000, n))
+        }),
+    ) {
+        let max = *weights.iter().max().unwrap_or(&1) as f64;
+        let w: Vec<f64> = weights.iter().map(|&x| x as f64 / max).collect();
+        let budget = Budget::new(Bytes(budget));
+        let dp = plan_weighted(Method::Dp, &scene, budget, &w);
+        let value = |idx: &[usize]| -> f64 {
+            idx.iter().zip(&scene.objects).zip(&w).map(|((&j, o), w)| w * o.configs[j].quality).sum()
+        };
+        let counts: Vec<usize> = scene.objects.iter().map(|o| o.configs.len()).collect();
+        let mut idx = vec![0usize; counts.len()];
+        let mut best: Option<f64> = None;
+        'all: loop {
+            let units: u64 = idx.iter().zip(&scene.objects)
+                .map(|(&j, o)| o.configs[j].size.0.div_ceil(budget.unit.0)).sum();
+            if units <= budget.units() {
+                best = Some(best.map_or(value(&idx), |b| b.max(value(&idx))));
+            }
+            for k in 0..idx.len() {
+                idx[k] += 1;
+                if idx[k] < counts[k] { continue 'all; }
+                idx[k] = 0;
+            }
+            break;
+        }
+        match (&dp, best) {
+            (Ok(p), Some(b)) => {
+                prop_assert!(p.feasible && p.total_size_bytes <= budget.total.0);
+                check_consistent(&scene, p)?;
+                let chosen: Vec<usize> = p.objects.iter().map(|o| o.config_index.unwrap_or(0)).collect();
+                let tol = 1e-8 * scene.objects.len() as f64;
+                prop_assert!(value(&chosen) >= b - tol, "weighted {} < optimum {}", value(&chosen), b);
+                let sum: f64 = p.objects.iter().map(|o| o.quality).sum();
+                prop_assert!((p.total_quality - sum).abs() < 1e-9);
+            }
+            (Err(_), None) => {}
+            _ => prop_assert!(false, "dp {:?} vs exhaustive {:?}", dp, best),
         }
     }
 }

@@ -4,7 +4,7 @@
 //! simulate on the device — with a progress bar and a short report.
 
 use crate::bake::trained::lattice_choice;
-use crate::baselines::Method;
+use crate::baselines::{Method, Objective};
 use crate::device::Device;
 use crate::eval::scale::{Scale, Sizes};
 use crate::metrics::Lpips;
@@ -96,6 +96,13 @@ pub struct PipelineArgs {
     /// a profile per geometry; needs the trained baker).
     #[arg(long, value_enum, default_value_t = Geometries::Planes)]
     pub geometry: Geometries,
+    /// What the selectors maximise: `mean` (the paper's sum of each
+    /// network's SSIM on its own views) or `area` (each network weighted by
+    /// 1 / zoom², its segmentation's enlargement, so every network counts
+    /// per pixel of the original frames; plans still report unweighted
+    /// SSIM).
+    #[arg(long, value_enum, default_value_t = Objective::Mean)]
+    pub objective: Objective,
     /// Leave LPIPS out even when its weights are available.
     #[arg(long)]
     pub no_lpips: bool,
@@ -138,6 +145,7 @@ impl PipelineArgs {
         };
         opts.baker = self.baker_at(scale)?;
         opts.geometries = self.geometry;
+        opts.objective = self.objective;
         if self.geometry == Geometries::Both && opts.baker == Baker::Hull {
             bail!(if self.baker == Some(BakerName::Hull) {
                 "--geometry both needs the trained baker: --baker hull bakes planes only (leave out --baker hull, or use --geometry planes)"
@@ -416,6 +424,11 @@ mod tests {
         assert_eq!(o.crop_margin, 0.0);
         let o = options(&["--crop-margin", "0.1"]).unwrap();
         assert_eq!(o.crop_margin, 0.1);
+        // The paper's objective unless the area weighting is asked for.
+        assert_eq!(o.objective, Objective::Mean);
+        let o = options(&["--objective", "area"]).unwrap();
+        assert_eq!(o.objective, Objective::Area);
+        assert!(options(&["--objective", "pixels"]).is_err());
     }
 
     #[test]

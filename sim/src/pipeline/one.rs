@@ -44,6 +44,8 @@ pub struct RunResult {
     pub scene_json: serde_json::Value,
     /// The baker every asset came from (`hull` or `trained`).
     pub baker: String,
+    /// What the selector maximised (`mean`, the paper's, or `area`).
+    pub objective: String,
     /// Where the time went.
     pub times: RunTimes,
     /// Each network's quality range against its views' noise.
@@ -157,6 +159,7 @@ pub fn run_one(
         sample_bakes: (baked, all_samples - baked),
         scene_json: prepared.scene_json.clone(),
         baker: opts.baker.name().to_string(),
+        objective: opts.objective.name().to_string(),
         times,
         ranges: super::range::ranges(&prepared.samples),
     })
@@ -208,6 +211,7 @@ struct ReportJson<'a> {
     device: &'a str,
     method: String,
     baker: &'a str,
+    objective: &'a str,
     networks: Vec<NetworkJson<'a>>,
     timings: Timings,
     times: RunTimes,
@@ -243,6 +247,13 @@ impl RunResult {
             "nerflex run: {} on {} with {}, {} baker ({:.0} s)",
             self.label, self.device, self.plan.method, self.baker, wall_s
         );
+        if self.objective != "mean" {
+            let _ = writeln!(
+                s,
+                "objective: {} (each network's SSIM weighted by 1 / zoom²; SSIM below unweighted)",
+                self.objective
+            );
+        }
         let names: Vec<&str> = self.networks.iter().map(|(n, _)| n.as_str()).collect();
         let _ = writeln!(
             s,
@@ -390,6 +401,7 @@ impl RunResult {
             device: &self.device,
             method: self.plan.method.to_string(),
             baker: &self.baker,
+            objective: &self.objective,
             networks: self
                 .networks
                 .iter()

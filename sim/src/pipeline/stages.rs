@@ -20,7 +20,9 @@ use super::bakes::{BakeRequest, BakeStore, Baked, Baker};
 use super::geometries::{self, Geometries};
 use super::views::{score_view, ViewScores};
 use crate::bake::sweep::{Fnv64, ObjectViews};
-use crate::baselines::{self, Budget, Method, Plan, PlannedObject, DEFAULT_G, DEFAULT_P};
+use crate::baselines::{
+    self, Budget, Method, Objective, Plan, PlannedObject, DEFAULT_G, DEFAULT_P,
+};
 use crate::camera::Camera;
 use crate::capture::Capture;
 use crate::device::Device;
@@ -97,6 +99,9 @@ pub struct Options {
     /// The geometries the profiler samples and the planner chooses from
     /// (`--geometry`; planes only by default).
     pub geometries: Geometries,
+    /// What the selectors maximise (`--objective`; the paper's sum of
+    /// per-network SSIM by default).
+    pub objective: Objective,
 }
 
 impl Options {
@@ -120,6 +125,7 @@ impl Options {
             spread: None,
             crop_margin: 0.0,
             geometries: Geometries::Planes,
+            objective: Objective::Mean,
         }
     }
 
@@ -200,6 +206,9 @@ pub struct Prepared {
     pub scene: Scene,
     /// The scene as JSON (profile form, as `nerflex plan --scene` reads it).
     pub scene_json: serde_json::Value,
+    /// What the selectors maximise, and each scene object's weight in it
+    /// (scene order; all 1 for the paper's objective).
+    pub objective: (Objective, Vec<f64>),
     /// Timings.
     pub timings: Timings,
 }
@@ -493,6 +502,15 @@ pub fn prepare(
         patches: opts.configs.space_patch.clone(),
     };
     let (scene, scene_json) = geometries::fit_scene(&samples, &mesh_samples, &points, &space)?;
+    let zooms: Vec<(String, f64)> = segmentation
+        .groups
+        .iter()
+        .map(|g| (g.folder.clone(), g.mean_zoom))
+        .collect();
+    let weights = opts
+        .objective
+        .weights(&scene, &zooms)
+        .map_err(|e| anyhow::anyhow!("--objective {}: {e}", opts.objective))?;
     timings.profile_s = points_s + t2.elapsed().as_secs_f64();
     progress.step("fitted");
     Ok(Prepared {
@@ -506,6 +524,7 @@ pub fn prepare(
         mesh_samples,
         scene,
         scene_json,
+        objective: (opts.objective, weights),
         timings,
     })
 }
@@ -528,8 +547,13 @@ pub fn plan_within(
     budget: Bytes,
 ) -> anyhow::Result<(Plan, f64)> {
     let t0 = Instant::now();
-    let mut plan = baselines::plan(method, &prepared.scene, Budget::new(budget))
-        .with_context(|| format!("{method} plan for {} on {}", prepared.label, device.name))?;
+    let mut plan = baselines::plan_weighted(
+        method,
+        &prepared.scene,
+        Budget::new(budget),
+        &prepared.objective.1,
+    )
+    .with_context(|| format!("{method} plan for {} on {}", prepared.label, device.name))?;
     let secs = t0.elapsed().as_secs_f64();
     plan.device = Some(device.name.clone());
     Ok((plan, secs))
