@@ -572,13 +572,15 @@ fn write_group_into(
     let mut counts = [0usize; 2];
     let mut zoom_sum = 0.0;
     for (split, frames) in [(Split::Train, &cap.train), (Split::Test, &cap.test)] {
-        let zooms: Mutex<f64> = Mutex::new(0.0);
-        let n = frames
+        // Each written view's zoom, in view order: summed in that order so
+        // `mean_zoom` is the same to the last bit on every run (a shared
+        // accumulator added them in the threads' order).
+        let zooms = frames
             .par_iter()
             .enumerate()
-            .map(|(index, f)| -> Result<usize, SegmentError> {
+            .map(|(index, f)| -> Result<Option<f64>, SegmentError> {
                 let Some(mut v) = group_view(f, group, opts)? else {
-                    return Ok(0);
+                    return Ok(None);
                 };
                 if !mark_others {
                     for m in v.mask.iter_mut() {
@@ -603,10 +605,10 @@ fn write_group_into(
                 }
                 let stem = v.file_path.rsplit('/').next().unwrap_or(&v.file_path);
                 writer.write_frame(split, index, stem, &v.camera, &v.image, Some(&v.mask))?;
-                *zooms.lock().unwrap_or_else(|e| e.into_inner()) += 0.5 * (v.zoom.0 + v.zoom.1);
-                Ok(1)
+                Ok(Some(0.5 * (v.zoom.0 + v.zoom.1)))
             })
-            .try_reduce(|| 0, |a, b| Ok(a + b))?;
+            .collect::<Result<Vec<_>, SegmentError>>()?;
+        let n = zooms.iter().flatten().count();
         if n == 0 && split == Split::Train {
             return Err(SegmentError::Invalid(format!(
                 "{}: group {:?} is visible in no training view",
@@ -615,7 +617,7 @@ fn write_group_into(
         }
         counts[usize::from(split == Split::Test)] = n;
         if split == Split::Train {
-            zoom_sum = zooms.into_inner().unwrap_or_else(|e| e.into_inner());
+            zoom_sum = zooms.iter().flatten().sum();
         }
     }
     // The group's own scene.json: its objects' entries, renumbered 1..n.
