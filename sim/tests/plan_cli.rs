@@ -297,3 +297,90 @@ fn bad_geometry_and_combine_paths_are_errors() {
     );
     assert!(!out_file.exists());
 }
+
+/// `--objective area` reads each network's zoom from a segmentation file:
+/// a ×4 crop's +0.03 SSIM is then worth less than the frame's +0.01, so
+/// the budget goes to the shared network; missing or stray flags and an
+/// object the segmentation lacks are errors naming the flag or file.
+#[test]
+fn area_objective_weighs_by_the_segmentations_zoom() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.json");
+    let cfg = |g: u32, mb: u64, q: f64| serde_json::json!({"g": g, "p": 5, "size_bytes": mb * 1_000_000, "quality": q});
+    std::fs::write(
+        &scene,
+        serde_json::json!({"objects": [
+            {"name": "shared", "configs": [cfg(32, 10, 0.95), cfg(64, 30, 0.96)]},
+            {"name": "crop", "configs": [cfg(32, 10, 0.80), cfg(64, 30, 0.83)]},
+        ]})
+        .to_string(),
+    )
+    .unwrap();
+    let seg = dir.path().join("segmentation.json");
+    std::fs::write(
+        &seg,
+        r#"{"groups": [{"folder": "crop", "mean_zoom": 4.0}, {"folder": "shared", "mean_zoom": 1.0}]}"#,
+    )
+    .unwrap();
+    let (scene, seg) = (scene.to_str().unwrap(), seg.to_str().unwrap());
+    let plan = |extra: &[&str]| -> Output {
+        let mut a = vec![
+            "plan",
+            "--scene",
+            scene,
+            "--device",
+            "iphone13",
+            "--budget-mb",
+            "40",
+            "--json",
+        ];
+        a.extend_from_slice(extra);
+        nerflex(&a)
+    };
+    let grids = |out: &Output| -> Vec<u64> {
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        v["objects"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|o| o["g"].as_u64().unwrap())
+            .collect()
+    };
+    assert_eq!(grids(&plan(&[])), [32, 64]);
+    let area = plan(&["--objective", "area", "--segmentation", seg]);
+    assert_eq!(grids(&area), [64, 32]);
+    let v: serde_json::Value = serde_json::from_slice(&area.stdout).unwrap();
+    assert_eq!(v["objective"], "area");
+    assert_eq!(v["objects"][0]["quality"], 0.96);
+    assert!((v["total_quality"].as_f64().unwrap() - 1.76).abs() < 1e-12);
+
+    let err = |out: Output| {
+        assert!(!out.status.success());
+        text(&out.stderr)
+    };
+    assert!(err(plan(&["--objective", "area"])).contains("--segmentation"));
+    assert!(err(plan(&["--segmentation", seg])).contains("--objective area"));
+    let other = dir.path().join("other.json");
+    std::fs::write(
+        &other,
+        r#"{"groups": [{"folder": "crop", "mean_zoom": 4.0}]}"#,
+    )
+    .unwrap();
+    let e = err(plan(&[
+        "--objective",
+        "area",
+        "--segmentation",
+        other.to_str().unwrap(),
+    ]));
+    assert!(e.contains("other.json") && e.contains("shared"), "{e}");
+    let bad = dir.path().join("bad.json");
+    std::fs::write(&bad, "{").unwrap();
+    assert!(err(plan(&[
+        "--objective",
+        "area",
+        "--segmentation",
+        bad.to_str().unwrap()
+    ]))
+    .contains("bad.json"));
+}

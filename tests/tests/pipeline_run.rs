@@ -105,6 +105,43 @@ fn tiny_scene_end_to_end() {
             .collect::<Vec<_>>()
     );
 
+    // The area objective: the same scene from the store, each network
+    // weighted by 1 / zoom² (the shared one by 1), and a DP plan that is
+    // at least as good on the weighted sum and reports unweighted SSIM.
+    let mut area_opts = opts.clone();
+    area_opts.objective = nerflex_sim::baselines::Objective::Area;
+    let area = pipeline::prepare(
+        &Input::Preset(Preset::Scene1),
+        &area_opts,
+        &out,
+        None,
+        &Quiet,
+    )
+    .unwrap();
+    assert_eq!(area.scene, prepared.scene);
+    assert_eq!(prepared.objective.1, vec![1.0; prepared.networks.len()]);
+    let zoom: Vec<f64> = area
+        .segmentation
+        .groups
+        .iter()
+        .map(|g| g.mean_zoom)
+        .collect();
+    let w = &area.objective.1;
+    let max = zoom.iter().map(|z| 1.0 / (z * z)).fold(0.0, f64::max);
+    for (wi, z) in w.iter().zip(&zoom) {
+        assert!((wi - 1.0 / (z * z) / max).abs() < 1e-12, "{w:?} {zoom:?}");
+    }
+    assert!(area.segmentation.groups.iter().any(|g| g.mean_zoom > 1.0));
+    let (dp_area, _) = pipeline::plan_for(&area, Method::Dp, &device).unwrap();
+    assert!(dp_area.feasible && dp_area.total_size_bytes <= device.budget().0);
+    let weighted = |p: &nerflex_sim::baselines::Plan| -> f64 {
+        p.objects.iter().zip(w).map(|(o, w)| w * o.quality).sum()
+    };
+    assert!(weighted(&dp_area) >= weighted(&dp) - 1e-6);
+    for (o, so) in dp_area.objects.iter().zip(&area.scene.objects) {
+        assert_eq!(o.quality, so.configs[o.config_index.unwrap()].quality);
+    }
+
     // `nerflex run`'s files feed `nerflex simulate`.
     let run = pipeline::RunResult {
         label: prepared.label.clone(),

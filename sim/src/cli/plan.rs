@@ -6,9 +6,10 @@
 //! `single`, which always have a plan, after printing it with
 //! `"feasible": false`).
 
-use crate::baselines::{self, Budget, Method, Plan};
+use crate::baselines::{self, Budget, Method, Objective, Plan};
 use crate::device::Device;
 use crate::scene_file;
+use crate::scene_file::Scene;
 use anyhow::{bail, Context};
 use nerflex_core::units::Bytes;
 use std::fmt::Write as _;
@@ -40,9 +41,72 @@ pub struct Args {
     /// under-predict by up to 11.3 % (docs/profiler.md, "A size margin").
     #[arg(long, value_name = "PCT", allow_negative_numbers = true)]
     pub size_margin: Option<f64>,
+    /// What the selector maximises: `mean` (the paper's sum of predicted
+    /// SSIM) or `area` (each object's SSIM weighted by 1 / zoom², its
+    /// network's enlargement, read from `--segmentation`).
+    #[arg(long, value_enum, default_value_t = Objective::Mean)]
+    pub objective: Objective,
+    /// A run's `segment/segmentation.json`, whose groups give each
+    /// network's mean zoom (for `--objective area`).
+    #[arg(long, value_name = "FILE")]
+    pub segmentation: Option<PathBuf>,
     /// Print the plan as JSON.
     #[arg(long)]
     pub json: bool,
+}
+
+/// The part of `segmentation.json` the area objective reads.
+#[derive(serde::Deserialize)]
+struct Zooms {
+    groups: Vec<ZoomGroup>,
+}
+
+#[derive(serde::Deserialize)]
+struct ZoomGroup {
+    folder: String,
+    mean_zoom: f64,
+}
+
+/// Each scene object's weight under `objective` (all 1 for `mean`); every
+/// object must be a network of the segmentation for `area`.
+fn weights(
+    objective: Objective,
+    segmentation: Option<&std::path::Path>,
+    scene: &Scene,
+) -> anyhow::Result<Vec<f64>> {
+    let file = match (objective, segmentation) {
+        (Objective::Mean, None) => return Ok(vec![1.0; scene.objects.len()]),
+        (Objective::Mean, Some(_)) => {
+            bail!("--segmentation: only read with --objective area")
+        }
+        (Objective::Area, None) => bail!(
+            "--objective area needs --segmentation FILE (a run's segment/segmentation.json) for each network's zoom"
+        ),
+        (Objective::Area, Some(f)) => f,
+    };
+    let text =
+        std::fs::read_to_string(file).with_context(|| format!("reading {}", file.display()))?;
+    let z: Zooms = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a segmentation.json", file.display()))?;
+    let zooms: Vec<(String, f64)> = z
+        .groups
+        .into_iter()
+        .map(|g| (g.folder, g.mean_zoom))
+        .collect();
+    if let Some(o) = scene
+        .objects
+        .iter()
+        .find(|o| !zooms.iter().any(|(n, _)| *n == o.name))
+    {
+        bail!(
+            "{}: no network `{}` (the scene's objects must be its groups' folders)",
+            file.display(),
+            o.name
+        );
+    }
+    objective
+        .weights(scene, &zooms)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))
 }
 
 /// [`Budget::less_size_margin`], with an error naming the flag.
@@ -70,7 +134,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(0) => bail!("--unit-bytes: must be at least 1"),
         Some(u) => Budget::with_unit(total, Bytes(u)),
     };
-    let mut plan = baselines::plan(args.method, &scene, budget)
+    let weights = weights(args.objective, args.segmentation.as_deref(), &scene)?;
+    let mut plan = baselines::plan_weighted(args.method, &scene, budget, &weights)
         .with_context(|| format!("{} plan for {}", args.method, args.scene.display()))?;
     plan.device = Some(device.name.clone());
     let text = if args.json {
@@ -80,12 +145,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             // came from.
             map.insert("size_margin_pct".into(), margin.into());
             map.insert("unreduced_budget_bytes".into(), whole.0.into());
+            if args.objective != Objective::Mean {
+                // The objects' qualities stay unweighted; say what was maximised.
+                map.insert("objective".into(), args.objective.name().into());
+            }
         }
         let mut s = serde_json::to_string_pretty(&v)?;
         s.push('\n');
         s
     } else {
         let mut t = String::new();
+        if args.objective != Objective::Mean {
+            let _ = writeln!(
+                t,
+                "objective {}: each object's SSIM weighted by 1 / zoom² (SSIM below unweighted)",
+                args.objective
+            );
+        }
         if margin > 0.0 {
             let _ = writeln!(
                 t,
