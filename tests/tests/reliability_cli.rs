@@ -298,6 +298,56 @@ fn bake_never_replaces_a_folder_it_did_not_write() {
     assert_eq!(snapshot(&out), before);
 }
 
+/// The field loads beside the capture (on its own thread): a bad capture
+/// is still reported before a bad field, a bad field names `--field` and
+/// its file, and a good pair bakes and measures.
+#[test]
+fn bake_from_a_field_loads_it_beside_the_capture() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("a");
+    let nofield = tmp.path().join("nofield.safetensors");
+    let junk = tmp.path().join("junk.safetensors");
+    std::fs::write(&junk, b"not safetensors").unwrap();
+    let nocapture = tmp.path().join("nocapture");
+    let args = |capture: &Path, field: &Path| {
+        [
+            "bake",
+            "--capture",
+            s(capture),
+            "--object",
+            "ball",
+            "--field",
+            s(field),
+            "--grid",
+            "8",
+            "--patch",
+            "3",
+            "--out",
+            s(&out),
+        ]
+        .map(str::to_string)
+    };
+    let run = |a: [String; 13], needles: &[&str]| {
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        fails(&a, needles)
+    };
+    let msg = run(args(&nocapture, &nofield), &["nocapture"]);
+    assert!(!msg.contains("nofield"), "{msg}");
+    run(
+        args(capture(), &nofield),
+        &["--field", "nofield.safetensors"],
+    );
+    run(args(capture(), &junk), &["--field", "junk.safetensors"]);
+    assert!(!out.exists());
+    // The analytic field of the built-in capture: a whole trained bake.
+    let mut a: Vec<String> = args(capture(), Path::new("builtin")).to_vec();
+    a.extend(["--epochs", "0.2", "--measure"].map(str::to_string));
+    let a: Vec<&str> = a.iter().map(String::as_str).collect();
+    let (code, msg) = nerflex(&a);
+    assert_eq!(code, 0, "{msg}");
+    assert!(out.join("mlp.json").is_file());
+}
+
 #[test]
 fn bake_refuses_zero_views_and_an_impossible_patch() {
     let tmp = tempfile::tempdir().unwrap();

@@ -22,7 +22,7 @@ use super::{BakeParams, BakeView, BAKER_VERSION};
 use crate::asset::Asset;
 use crate::camera::Camera;
 use crate::capture::Capture;
-use crate::metrics::{Lpips, Metrics};
+use crate::metrics::{Lpips, Metrics, Scores};
 
 /// Version of the measurement (renderer + metrics use); part of the cache
 /// key like [`BAKER_VERSION`]. 2: the renderer supersamples 2 × 2 (session
@@ -455,14 +455,36 @@ pub fn measure_views_hiding(
     if test.is_empty() {
         bail!("no test views to measure against");
     }
+    // Views in waves of one per core: their renders, SSIM and LPIPS each
+    // leave a core idle in places (LPIPS's last layers, the render's
+    // setup), so views side by side fill it; a wave bounds the metrics'
+    // buffers in flight. Each view's scores do not depend on the order,
+    // and the sums below run in view order: the same figures as one by
+    // one, and the first failing view's error.
+    let wave = rayon::current_num_threads().max(1);
+    let mut scored: Vec<anyhow::Result<(Scores, RgbaImage)>> = Vec::with_capacity(test.len());
+    for (w, chunk) in test.chunks(wave).enumerate() {
+        use rayon::prelude::*;
+        let part: Vec<_> = chunk
+            .par_iter()
+            .enumerate()
+            .map(|(j, (cam, gt))| {
+                let i = w * wave + j;
+                let mut img =
+                    render(obj, cam).with_context(|| format!("rendering test view {i}"))?;
+                hide_unknown(&mut img, gt, hidden.get(i).and_then(Option::as_ref));
+                let s = Metrics::compare(&img, gt, lpips)
+                    .with_context(|| format!("measuring test view {i}"))?;
+                Ok((s, img))
+            })
+            .collect();
+        scored.extend(part);
+    }
     let mut sums = (0.0, 0.0, 0.0);
     let mut renders = Vec::new();
     let mut views = Vec::with_capacity(test.len());
-    for (i, (cam, gt)) in test.iter().enumerate() {
-        let mut img = render(obj, cam).with_context(|| format!("rendering test view {i}"))?;
-        hide_unknown(&mut img, gt, hidden.get(i).and_then(Option::as_ref));
-        let s = Metrics::compare(&img, gt, lpips)
-            .with_context(|| format!("measuring test view {i}"))?;
+    for r in scored {
+        let (s, img) = r?;
         let psnr = s.psnr.min(100.0); // identical images: cap inf at 100 dB
         sums.0 += s.ssim;
         sums.1 += psnr;

@@ -236,27 +236,37 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         crate::output::check_replaceable(dir, &is_render_file, RENDERS_HINT)?;
     }
     let t0 = Instant::now();
-    let objects = load_objects(&args)?;
+    let baker = args.trained.baker()?;
+    let object = args.object.first().map(String::as_str);
+    // The field (hundreds of MB read and indexed on one core) loads beside
+    // the capture's photos; the capture's errors come first.
+    let args = &args;
+    let (objects, field) = std::thread::scope(|sc| {
+        let field = match (baker, args.capture.first()) {
+            (super::bake_trained::Baker::Trained, Some(capture)) => {
+                Some(sc.spawn(move || super::bake_trained::load(&args.trained, capture, object)))
+            }
+            _ => None,
+        };
+        let objects = load_objects(args);
+        let field = field.map(|h| h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)));
+        (objects, field)
+    });
+    let objects = objects?;
     let [obj] = objects.as_slice() else {
         bail!("without --sweep, bake one object: give one --capture and at most one --object");
     };
+    let field = field.transpose()?;
     let t_load = t0.elapsed().as_secs_f64();
-    let mut params = base_params(&args);
+    let mut params = base_params(args);
     params.grid = g;
     params.patch = p;
     params.search_box = obj.search_box;
     let t1 = Instant::now();
     let views = obj.bake_views();
-    let baked = match args.trained.baker()? {
-        super::bake_trained::Baker::Hull => bake::bake(&views, &params)?,
-        super::bake_trained::Baker::Trained => super::bake_trained::bake(
-            &args.trained,
-            &args.capture[0],
-            args.object.first().map(String::as_str),
-            &views,
-            g,
-            p,
-        )?,
+    let baked = match &field {
+        None => bake::bake(&views, &params)?,
+        Some(field) => super::bake_trained::bake(&args.trained, field, &views, g, p)?,
     };
     let t_bake = t1.elapsed().as_secs_f64();
     let s = baked.stats;
@@ -266,16 +276,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         baked.gpu_bytes(),
     );
     let asset = baked.into_asset()?;
-    let t2 = Instant::now();
-    // Built beside --out; moved into place only after the measurement.
-    let (staged, file_bytes) = match &args.out {
-        Some(out) => {
-            let (s, b) = asset.write_staged(out)?;
-            (Some(s), b)
-        }
-        None => (None, bake::file_bytes(&asset)?),
+    let net = if args.measure { lpips(args)? } else { None };
+    // Encoding (one deflate stream per PNG, so a core idles at its tail)
+    // and the measurement run side by side. The files are built beside
+    // --out and moved into place only after the measurement.
+    let write = || -> anyhow::Result<_> {
+        let t2 = Instant::now();
+        let (staged, file_bytes) = match &args.out {
+            Some(out) => {
+                let (s, b) = asset.write_staged(out)?;
+                (Some(s), b)
+            }
+            None => (None, bake::file_bytes(&asset)?),
+        };
+        Ok((staged, file_bytes, t2.elapsed().as_secs_f64()))
     };
-    let t_write = t2.elapsed().as_secs_f64();
+    // The renders are kept for the holes below, and written on request.
+    let measure = || {
+        args.measure
+            .then(|| obj.measure(&asset, &sweep::fixed_point_render, net.as_ref(), true))
+            .transpose()
+    };
+    let (written, measured) = rayon::join(write, measure);
+    let (staged, file_bytes, t_write) = written?;
+    let measured = measured?;
     println!(
         "{}: g={g} p={p} from {} views: {quads} quads, {pages} atlas page pair(s), {} occupied voxels",
         obj.name,
@@ -295,13 +319,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         gpu_bytes as f64 / 1048576.0
     );
     println!(
-        "time: bake {t_bake:.2} s (carve {:.2}, quads {:.2}, views {:.2}, colour {:.2}, atlas {:.2}), encode+write {t_write:.2} s, load {t_load:.2} s",
-        s.times.carve_s, s.times.quads_s, s.times.views_s, s.times.colour_s, s.times.atlas_s
+        "time: bake {t_bake:.2} s (carve {:.2}, quads {:.2}, views {:.2}, colour {:.2}, atlas {:.2}), encode+write {t_write:.2} s{}, load {t_load:.2} s",
+        s.times.carve_s, s.times.quads_s, s.times.views_s, s.times.colour_s, s.times.atlas_s,
+        if args.measure { " beside the measurement" } else { "" }
     );
-    if args.measure {
-        let net = lpips(&args)?;
-        // The renders are kept for the holes below, and written on request.
-        let m = obj.measure(&asset, &sweep::fixed_point_render, net.as_ref(), true)?;
+    if let Some(m) = measured {
         let (q, renders) = (m.mean, m.renders);
         for (i, v) in m.views.iter().enumerate() {
             println!("  test view {i}: {}", quality_line(v));

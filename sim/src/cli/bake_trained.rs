@@ -390,25 +390,50 @@ pub fn load_field(
     crate::train::load_field(spec).with_context(|| format!("--field {}", spec.display()))
 }
 
-/// Bakes one object with the trained baker and prints its counts.
-pub fn bake(
+/// A field `--field` names, loaded.
+pub struct LoadedField {
+    /// The field.
+    pub field: Box<dyn RadianceField>,
+    /// What `--field` said.
+    pub spec: std::path::PathBuf,
+    /// Wall time of the load, seconds.
+    pub seconds: f64,
+}
+
+/// Loads the field `--field` names for `object` of the capture in
+/// `capture` (a file, or `builtin`).
+pub fn load(
     args: &TrainedArgs,
     capture: &Path,
     object: Option<&str>,
-    views: &[BakeView<'_>],
-    grid: u32,
-    patch: u32,
-) -> anyhow::Result<BakedObject> {
+) -> anyhow::Result<LoadedField> {
     let spec = args
         .field
         .as_deref()
         .context("--baker trained needs --field")?;
     let t_load = std::time::Instant::now();
     let field = load_field(spec, capture, object)?;
+    Ok(LoadedField {
+        field,
+        spec: spec.to_path_buf(),
+        seconds: t_load.elapsed().as_secs_f64(),
+    })
+}
+
+/// Bakes one object from its loaded field with the trained baker and
+/// prints its counts.
+pub fn bake(
+    args: &TrainedArgs,
+    loaded: &LoadedField,
+    views: &[BakeView<'_>],
+    grid: u32,
+    patch: u32,
+) -> anyhow::Result<BakedObject> {
+    let field = &loaded.field;
     println!(
         "trained: field {} loaded in {:.2} s",
-        spec.display(),
-        t_load.elapsed().as_secs_f64()
+        loaded.spec.display(),
+        loaded.seconds
     );
     if args.probe {
         probe(args, field.as_ref(), views, grid, patch)?;

@@ -10,7 +10,7 @@ use crate::bake::Aabb;
 
 /// A radiance field over a world-space box (world units, z up, the
 /// capture's frame).
-pub trait RadianceField: Sync {
+pub trait RadianceField: Send + Sync {
     /// The box the field lives in; outside it the field is empty.
     fn bounds(&self) -> Aabb;
 
