@@ -902,28 +902,13 @@ pub fn bake(
         trained_texels = slot_texel.len() as u64;
         let taps: Vec<featgrid::Taps> = {
             use rayon::prelude::*;
-            // Written in place (`Option`'s collect gathers pieces and
-            // copies them: 10 % of a lego bake's page faults).
-            let outside = std::sync::atomic::AtomicBool::new(false);
-            let mut taps = Vec::new();
             slot_texel
                 .par_iter()
-                .map(|&t| {
-                    grid.taps(texel_point(t as usize)).unwrap_or_else(|| {
-                        outside.store(true, std::sync::atomic::Ordering::Relaxed);
-                        featgrid::Taps {
-                            slot: [0; 8],
-                            w: [0.0; 8],
-                        }
-                    })
-                })
-                .collect_into_vec(&mut taps);
-            if outside.into_inner() {
-                return Err(BakeError::BadParam(
-                    "a shown texel lies outside the feature lattice".into(),
-                ));
-            }
-            taps
+                .map(|&t| grid.taps(texel_point(t as usize)))
+                .collect::<Option<_>>()
+                .ok_or_else(|| {
+                    BakeError::BadParam("a shown texel lies outside the feature lattice".into())
+                })?
         };
         if round == 0 {
             let (values, r) = init::splat(grid, &pixels, &taps, field);

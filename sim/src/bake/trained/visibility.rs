@@ -276,11 +276,7 @@ pub fn peel(
             let t = TILE as u32;
             let mut two = Box::new(TwoLayers::<TILE, TILE>::new());
             let mut near = Box::new(TileRenderer::<TILE, TILE>::new());
-            // At most a pixel each, reserved whole: pushes then never copy
-            // into fresh pages, and the reserve's untouched tail is never
-            // faulted in (given back below).
-            let mut out =
-                Vec::with_capacity(out_view.width() as usize * out_view.height() as usize);
+            let mut out = Vec::new();
             let mut tiles = (0u64, 0u64);
             for (b, bin) in binned.bins.iter().enumerate() {
                 if bin.is_empty() {
@@ -355,7 +351,6 @@ pub fn peel(
                     }
                 }
             }
-            out.shrink_to_fit();
             Ok((out, tiles))
         })
         .collect();
@@ -398,13 +393,8 @@ impl Peel {
             .views
             .par_iter()
             .map(|view| {
-                // At most one each (no copies while they grow).
-                let (mut pixels, mut subs, mut background, mut lost) = (
-                    Vec::with_capacity(view.len()),
-                    Vec::with_capacity(if supersample { view.len() } else { 0 }),
-                    Vec::new(),
-                    0u64,
-                );
+                let (mut pixels, mut subs, mut background, mut lost) =
+                    (Vec::new(), Vec::new(), Vec::new(), 0u64);
                 for px in view {
                     let mut shown = [NO_TEXEL; SUBSAMPLES];
                     let mut k = 0;
