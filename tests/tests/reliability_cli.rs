@@ -279,23 +279,26 @@ fn bake_never_replaces_a_folder_it_did_not_write() {
     std::fs::create_dir(&out).unwrap();
     std::fs::write(out.join("thesis.tex"), "years of work").unwrap();
     let before = snapshot(&out);
-    fails(
-        &[
-            "bake",
-            "--capture",
-            s(capture()),
-            "--object",
-            "ball",
-            "--grid",
-            "8",
-            "--patch",
-            "3",
-            "--out",
-            s(&out),
-        ],
-        &["thesis.tex", "--out"],
-    );
+    let a = small_bake(capture(), None, &out);
+    fails(&strs(&a), &["thesis.tex", "--out"]);
     assert_eq!(snapshot(&out), before);
+}
+
+/// `nerflex bake` of the built-in ball at (8, 3) into `out`, from `field`
+/// if given (the argument list the bake tests share).
+fn small_bake(capture: &Path, field: Option<&Path>, out: &Path) -> Vec<String> {
+    let mut a: Vec<String> = ["bake", "--capture", s(capture), "--object", "ball"]
+        .map(str::to_string)
+        .to_vec();
+    if let Some(f) = field {
+        a.extend(["--field".to_string(), s(f).to_string()]);
+    }
+    a.extend(["--grid", "8", "--patch", "3", "--out", s(out)].map(str::to_string));
+    a
+}
+
+fn strs(a: &[String]) -> Vec<&str> {
+    a.iter().map(String::as_str).collect()
 }
 
 /// The field loads beside the capture (on its own thread): a bad capture
@@ -309,28 +312,8 @@ fn bake_from_a_field_loads_it_beside_the_capture() {
     let junk = tmp.path().join("junk.safetensors");
     std::fs::write(&junk, b"not safetensors").unwrap();
     let nocapture = tmp.path().join("nocapture");
-    let args = |capture: &Path, field: &Path| {
-        [
-            "bake",
-            "--capture",
-            s(capture),
-            "--object",
-            "ball",
-            "--field",
-            s(field),
-            "--grid",
-            "8",
-            "--patch",
-            "3",
-            "--out",
-            s(&out),
-        ]
-        .map(str::to_string)
-    };
-    let run = |a: [String; 13], needles: &[&str]| {
-        let a: Vec<&str> = a.iter().map(String::as_str).collect();
-        fails(&a, needles)
-    };
+    let args = |capture: &Path, field: &Path| small_bake(capture, Some(field), &out);
+    let run = |a: Vec<String>, needles: &[&str]| fails(&strs(&a), needles);
     let msg = run(args(&nocapture, &nofield), &["nocapture"]);
     assert!(!msg.contains("nofield"), "{msg}");
     run(
@@ -340,10 +323,9 @@ fn bake_from_a_field_loads_it_beside_the_capture() {
     run(args(capture(), &junk), &["--field", "junk.safetensors"]);
     assert!(!out.exists());
     // The analytic field of the built-in capture: a whole trained bake.
-    let mut a: Vec<String> = args(capture(), Path::new("builtin")).to_vec();
+    let mut a = args(capture(), Path::new("builtin"));
     a.extend(["--epochs", "0.2", "--measure"].map(str::to_string));
-    let a: Vec<&str> = a.iter().map(String::as_str).collect();
-    let (code, msg) = nerflex(&a);
+    let (code, msg) = nerflex(&strs(&a));
     assert_eq!(code, 0, "{msg}");
     assert!(out.join("mlp.json").is_file());
 }
