@@ -31,7 +31,7 @@ mkdir -p $FIELDS
   --levels 128:1000,256:2000 --measure > train-two-levels.log
 ! has default || [ -f default/"$O".safetensors ] || "$N" train --capture cap --object "$O" --out default/"$O".safetensors \
   --measure > train-default.log
-V=v12 # the trained baker's version (bake::trained::TRAINED_BAKER_VERSION); v10 and v11: only the default field's sweep was re-run (sessions 29 and 30; session 31: tree's and session 32: text-panel's, default field only; v12: pawn (session 35) and ball with --choose-feature-res (session 36, by hand: docs/baking.md, "Session 36"), eval-budget field; from session 37 the sweep chooses the lattice by default: vase (37), box, torus, mug, spring (38), lattice and sponge (43), saved by hand as OBJECT-eval-budget-choose-v12)
+V=v12 # the trained baker's version (bake::trained::TRAINED_BAKER_VERSION); v10 and v11: only the default field's sweep was re-run (sessions 29 and 30; session 31: tree's and session 32: text-panel's, default field only; v12: pawn (session 35) and ball with --choose-feature-res (session 36, by hand: docs/baking.md, "Session 36"), eval-budget field; from session 37 the sweep chooses the lattice by default: vase (37), box, torus, mug, spring (38), lattice and sponge (43), gear, tree, text-panel and lattice from two-levels (44), saved by hand as OBJECT-FIELD-choose-v12)
 for f in $FIELDS; do
   "$N" bake --sweep --capture cap --object "$O" --field $f --grid 16,32,64,128,256 --patch 5,9,13,17 \
     --epochs 2 --csv "samples-$f.csv" --plots "plots-$f" --cache "cache-$f" > "sweep-$f.log"
