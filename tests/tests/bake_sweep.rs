@@ -321,3 +321,42 @@ fn hidden_pixels_of_a_held_out_view_are_not_scored() {
         vec![[9, 9, 9, 255], [1, 2, 3, 4], [9, 9, 9, 255], [1, 2, 3, 4]]
     );
 }
+
+/// A stored lattice choice is decided again from its stored scores when
+/// read: one stored before the tie rule (the coarser by 0.0003, gear's
+/// case) comes back as the finer; a clear win stays.
+#[test]
+fn stored_lattice_choices_follow_the_tie_rule() {
+    use nerflex_sim::bake::sweep::LatticeChosen;
+    let dir = tempfile::tempdir().unwrap();
+    let cache = Cache::new(dir.path());
+    let stored = |object: &str, cells: u32, candidates: Vec<(u32, f64, f64)>| LatticeChosen {
+        object: object.into(),
+        cells,
+        candidates,
+        reused: false,
+    };
+    let near = stored(
+        "gear",
+        119,
+        vec![
+            (238, 0.9487, 29.67),
+            (119, 0.9490, 29.44),
+            (60, 0.9432, 28.94),
+        ],
+    );
+    cache.put_lattice("near", &near).unwrap();
+    assert_eq!(cache.get_lattice("near").unwrap().cells, 238);
+    let clear = stored(
+        "ball",
+        54,
+        vec![
+            (215, 0.9699, 30.71),
+            (108, 0.9746, 30.69),
+            (54, 0.9776, 30.47),
+        ],
+    );
+    cache.put_lattice("clear", &clear).unwrap();
+    assert_eq!(cache.get_lattice("clear").unwrap().cells, 54);
+    assert!(cache.get_lattice("absent").is_none());
+}

@@ -631,10 +631,17 @@ impl Cache {
         (e.key == key).then_some(e.sample)
     }
 
-    /// A stored lattice choice, if any.
+    /// A stored lattice choice, if any, decided again from its stored
+    /// scores ([`super::trained::lattice_choice::pick`]): choices stored
+    /// before the tie rule (session 45) follow it too.
     pub fn get_lattice(&self, key: &str) -> Option<LatticeChosen> {
         let text = std::fs::read_to_string(self.dir.join(format!("{key}.json"))).ok()?;
-        serde_json::from_str(&text).ok()
+        let mut c: LatticeChosen = serde_json::from_str(&text).ok()?;
+        let scored: Vec<(u32, f64)> = c.candidates.iter().map(|&(k, s, _)| (k, s)).collect();
+        if let Some(cells) = super::trained::lattice_choice::pick(&scored) {
+            c.cells = cells;
+        }
+        Some(c)
     }
 
     /// Stores a lattice choice.

@@ -220,7 +220,8 @@ pub struct TrainedArgs {
     /// Choose the feature lattice's resolution for this object first: bake
     /// from all but every 8th training view at the default resolution and
     /// at a half and a quarter of it, keep the one that renders the held-back
-    /// views best (SSIM), then bake from every view with it
+    /// views best (SSIM; the finer of two within 0.002, the bake's seed
+    /// noise), then bake from every view with it
     /// (`bake::trained::lattice_choice`; four bakes in all, so a single
     /// bake does it only when asked). `--sweep` always chooses unless
     /// `--feature-res` is given: once per object at (64, 9), the choice
