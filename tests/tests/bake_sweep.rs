@@ -324,39 +324,30 @@ fn hidden_pixels_of_a_held_out_view_are_not_scored() {
 
 /// A stored lattice choice is decided again from its stored scores when
 /// read: one stored before the tie rule (the coarser by 0.0003, gear's
-/// case) comes back as the finer; a clear win stays.
+/// case) comes back as the finer; a clear win (ball's) stays.
 #[test]
 fn stored_lattice_choices_follow_the_tie_rule() {
     use nerflex_sim::bake::sweep::LatticeChosen;
     let dir = tempfile::tempdir().unwrap();
     let cache = Cache::new(dir.path());
-    let stored = |object: &str, cells: u32, candidates: Vec<(u32, f64, f64)>| LatticeChosen {
-        object: object.into(),
-        cells,
-        candidates,
-        reused: false,
-    };
-    let near = stored(
-        "gear",
-        119,
-        vec![
-            (238, 0.9487, 29.67),
-            (119, 0.9490, 29.44),
-            (60, 0.9432, 28.94),
-        ],
-    );
-    cache.put_lattice("near", &near).unwrap();
-    assert_eq!(cache.get_lattice("near").unwrap().cells, 238);
-    let clear = stored(
-        "ball",
-        54,
-        vec![
-            (215, 0.9699, 30.71),
-            (108, 0.9746, 30.69),
-            (54, 0.9776, 30.47),
-        ],
-    );
-    cache.put_lattice("clear", &clear).unwrap();
-    assert_eq!(cache.get_lattice("clear").unwrap().cells, 54);
+    let cases = [
+        (
+            "gear",
+            119,
+            [(238, 0.9487), (119, 0.9490), (60, 0.9432)],
+            238,
+        ),
+        ("ball", 54, [(215, 0.9699), (108, 0.9746), (54, 0.9776)], 54),
+    ];
+    for (object, stored, scores, read) in cases {
+        let chosen = LatticeChosen {
+            object: object.into(),
+            cells: stored,
+            candidates: scores.iter().map(|&(k, s)| (k, s, 30.0)).collect(),
+            reused: false,
+        };
+        cache.put_lattice(object, &chosen).unwrap();
+        assert_eq!(cache.get_lattice(object).unwrap().cells, read, "{object}");
+    }
     assert!(cache.get_lattice("absent").is_none());
 }
