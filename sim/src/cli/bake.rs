@@ -540,10 +540,11 @@ fn run_sweep(args: &Args) -> anyhow::Result<()> {
             .map(|(c, ssim, psnr)| format!("{c}³ {ssim:.4} / {psnr:.2} dB"))
             .collect();
         println!(
-            "{}: feature lattice {}³ chosen on held-back training views{} ({})",
+            "{}: feature lattice {}³ chosen on held-back training views{} (the finest within {} SSIM of the best: {})",
             l.object,
             l.cells,
             if l.reused { ", from the cache" } else { "" },
+            crate::bake::trained::lattice_choice::TIE_SSIM,
             scores.join(", ")
         );
     }
