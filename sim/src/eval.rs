@@ -151,6 +151,12 @@ pub struct SceneReport {
     /// Each scene object: its network, complexity and detail frequencies.
     #[serde(default)]
     pub objects: Vec<detail::ObjectDetail>,
+    /// Each network's feature lattice as the trained baker chose it (its
+    /// cells and the candidates' held-back scores), so a report says which
+    /// lattice every bake used; empty for the hull baker or a fixed
+    /// lattice (and in reports written before session 46).
+    #[serde(default)]
+    pub lattices: Vec<crate::bake::sweep::LatticeChosen>,
 }
 
 /// One FPS curve (the paper's FPS figure).
@@ -425,6 +431,15 @@ fn evaluate_scene(
         samples: prepared.samples.iter().map(|b| b.sample.clone()).collect(),
         rows,
         objects: detail::object_details(&prepared.segmentation),
+        lattices: {
+            // Read from the store, where the sample bakes put them.
+            let store = opts.bake_store();
+            prepared
+                .networks
+                .iter()
+                .filter_map(|n| store.stored_lattice(&n.views))
+                .collect()
+        },
     })
 }
 

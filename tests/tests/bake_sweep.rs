@@ -345,9 +345,17 @@ fn stored_lattice_choices_follow_the_tie_rule() {
             cells: stored,
             candidates: scores.iter().map(|&(k, s)| (k, s, 30.0)).collect(),
             reused: false,
+            stored_cells: None,
         };
         cache.put_lattice(object, &chosen).unwrap();
-        assert_eq!(cache.get_lattice(object).unwrap().cells, read, "{object}");
+        let got = cache.get_lattice(object).unwrap();
+        assert_eq!(got.cells, read, "{object}");
+        // What bakes made under the stored choice used, when it differs.
+        assert_eq!(
+            got.stored_cells,
+            (read != stored).then_some(stored),
+            "{object}"
+        );
     }
     assert!(cache.get_lattice("absent").is_none());
 }

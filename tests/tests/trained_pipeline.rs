@@ -194,6 +194,49 @@ fn the_store_chooses_each_objects_lattice_once_and_bakes_with_it() {
         .unwrap();
     assert!(!b.cached);
     assert_eq!(count(), 1);
+    // A store whose choice predates the tie rule (stored as another
+    // candidate): its bakes were made at the stored cells, so the choice
+    // read now keys bakes of its own and bakes anew.
+    let file = std::fs::read_dir(&lattices)
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let text = std::fs::read_to_string(&file).unwrap();
+    let mut old: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let other = l
+        .candidates
+        .iter()
+        .map(|c| c.0)
+        .find(|&k| k != l.cells)
+        .unwrap();
+    old["cells"] = other.into();
+    std::fs::write(&file, old.to_string()).unwrap();
+    let redecided = chosen.lattice(&views, &Quiet).unwrap().unwrap();
+    assert_eq!(
+        (redecided.cells, redecided.stored_cells),
+        (l.cells, Some(other))
+    );
+    assert_ne!(chosen.key(&views, 16, 5, false), keys[0]);
+    let c = chosen
+        .get_or_bake(&BakeRequest::planes(&views, 16, 5), None)
+        .unwrap();
+    assert!(!c.cached, "not the entry baked at the stored cells");
+    let json: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(c.dir.parent().unwrap().join("bake.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(json["lattice_res"].as_u64(), Some(u64::from(l.cells)));
+    // A choice stored as the rule reads it keeps the plain key.
+    std::fs::write(&file, text).unwrap();
+    assert_eq!(chosen.key(&views, 16, 5, false), keys[0]);
+    assert!(
+        chosen
+            .get_or_bake(&BakeRequest::planes(&views, 16, 5), None)
+            .unwrap()
+            .cached
+    );
     // The fixed store bakes at the given resolution and stores no choice.
     let Baker::Trained(mut f) = tiny_baker() else {
         unreachable!()
@@ -330,7 +373,20 @@ fn a_trained_evaluation_names_its_baker_and_what_it_substitutes() {
         })
         .count();
     assert_eq!(fields, 1 + 5 + s.networks.len(), "{:?}", s.networks);
+    // Each network's lattice as chosen, in the report and its Markdown.
+    let names: Vec<&str> = s.networks.iter().map(|(n, _)| n.as_str()).collect();
+    let chosen: Vec<&str> = s.lattices.iter().map(|l| l.object.as_str()).collect();
+    assert_eq!(chosen, names);
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    for (l, (name, objects)) in s.lattices.iter().zip(&s.networks) {
+        assert!(l.candidates.iter().any(|c| c.0 == l.cells), "{l:?}");
+        let label = match objects.as_slice() {
+            [one] if one == name => name.clone(),
+            _ => format!("{name} ({})", objects.join(", ")),
+        };
+        let named = format!("{label} [lattice {}³]", l.cells);
+        assert!(md.contains(&named), "{named} not in the report");
+    }
     assert!(md.contains("the trained baker"), "no substitution line");
     assert!(!md.contains("visual-hull bakes (no trained field)"));
 }

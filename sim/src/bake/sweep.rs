@@ -639,6 +639,7 @@ impl Cache {
         let mut c: LatticeChosen = serde_json::from_str(&text).ok()?;
         let scored: Vec<(u32, f64)> = c.candidates.iter().map(|&(k, s, _)| (k, s)).collect();
         if let Some(cells) = super::trained::lattice_choice::pick(&scored) {
+            c.stored_cells = (cells != c.cells).then_some(c.cells);
             c.cells = cells;
         }
         Some(c)
@@ -721,6 +722,11 @@ pub struct LatticeChosen {
     /// Taken from the cache.
     #[serde(skip)]
     pub reused: bool,
+    /// The cells stored with the choice when the tie rule, reading its
+    /// scores again, chose others (a choice made before session 45): what
+    /// bakes made at the time used ([`Cache::get_lattice`]).
+    #[serde(skip)]
+    pub stored_cells: Option<u32>,
 }
 
 /// What a sweep did.
@@ -775,6 +781,7 @@ pub fn chosen_lattice(
             .map(|k| (k.cells, k.ssim, k.psnr))
             .collect(),
         reused: false,
+        stored_cells: None,
     };
     if let Some(c) = cache {
         c.put_lattice(&key, &chosen)?;

@@ -217,6 +217,7 @@ mod tests {
             samples: Vec::new(),
             rows: vec![single, block],
             objects: details,
+            lattices: Vec::new(),
         }
     }
 

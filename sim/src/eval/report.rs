@@ -236,11 +236,15 @@ pub fn markdown(r: &EvalReport, pictures: &[(String, String)]) -> String {
             .networks
             .iter()
             .map(|(n, o)| {
-                if o.len() == 1 && &o[0] == n {
+                let mut name = if o.len() == 1 && &o[0] == n {
                     n.clone()
                 } else {
                     format!("{n} ({})", o.join(", "))
+                };
+                if let Some(l) = sc.lattices.iter().find(|l| &l.object == n) {
+                    let _ = write!(name, " [lattice {}³]", l.cells);
                 }
+                name
             })
             .collect();
         let _ = writeln!(s, "### {}\n\nnetworks: {}\n", sc.scene, nets.join(", "));

@@ -427,6 +427,7 @@ mod tests {
                 samples: Vec::new(),
                 rows,
                 objects: Vec::new(),
+                lattices: Vec::new(),
             }],
             real: None,
             fps: Vec::new(),

@@ -618,6 +618,15 @@ impl BakeStore {
         // views and the settings, all in the key already.)
         if let Some(at) = self.lattice_choice_at() {
             h.write(format!("lattice chosen at {at:?}").as_bytes());
+            // A stored choice the tie rule reads as another (one made
+            // before session 45): the entries under the plain key were
+            // baked at the stored cells, so the new lattice keys its own.
+            if let Some(c) = self
+                .stored_lattice(obj)
+                .filter(|c| c.stored_cells.is_some())
+            {
+                h.write(format!(" as {} cells", c.cells).as_bytes());
+            }
         }
         format!("{}-g{g}-p{p}{tag}-t{:016x}", obj.name, h.finish())
     }
@@ -636,6 +645,16 @@ impl BakeStore {
         Cache::new(self.root.join("lattices"))
     }
 
+    /// The feature lattice chosen for `obj` if `ROOT/lattices/` holds the
+    /// choice (never made here).
+    pub fn stored_lattice(&self, obj: &ObjectViews) -> Option<sweep::LatticeChosen> {
+        let (Baker::Trained(t), Some(at)) = (&self.baker, self.lattice_choice_at()) else {
+            return None;
+        };
+        let field_id = FieldStore::key(obj, &t.train);
+        sweep::stored_lattice(obj, &field_id, &t.bake, at, &self.lattices())
+    }
+
     /// The feature lattice chosen for `obj`: from `ROOT/lattices/`, or
     /// chosen now (its field trained or loaded first, then three bakes at
     /// the choice's (g, p), [`sweep::chosen_lattice`]). `None` for the
@@ -652,12 +671,12 @@ impl BakeStore {
         if lattice_choice::held_back(obj.train.len()).is_empty() {
             return Ok(None);
         }
-        let field_id = FieldStore::key(obj, &t.train);
-        let cache = self.lattices();
         // A stored choice needs no field in memory.
-        if let Some(c) = sweep::stored_lattice(obj, &field_id, &t.bake, at, &cache) {
+        if let Some(c) = self.stored_lattice(obj) {
             return Ok(Some(c));
         }
+        let field_id = FieldStore::key(obj, &t.train);
+        let cache = self.lattices();
         let field = self.field(obj, progress)?;
         progress.note(&format!(
             "choosing the feature lattice of {} at g={} p={}",
