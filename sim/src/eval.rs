@@ -431,15 +431,10 @@ fn evaluate_scene(
         samples: prepared.samples.iter().map(|b| b.sample.clone()).collect(),
         rows,
         objects: detail::object_details(&prepared.segmentation),
-        lattices: {
-            // Read from the store, where the sample bakes put them.
-            let store = opts.bake_store();
-            prepared
-                .networks
-                .iter()
-                .filter_map(|n| store.stored_lattice(&n.views))
-                .collect()
-        },
+        // Read from the store, where the sample bakes put them.
+        lattices: opts
+            .bake_store()
+            .stored_lattices(prepared.networks.iter().map(|n| &n.views)),
     })
 }
 

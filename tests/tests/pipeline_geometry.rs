@@ -289,6 +289,7 @@ fn a_plan_with_one_mesh_object_realises_it_as_a_mesh_export() {
         objective: trained.objective.name().to_string(),
         times: pipeline::RunTimes::default(),
         ranges: vec![],
+        lattices: Vec::new(),
     };
     let text = run.report_text(1.0, false);
     assert!(text.contains("SSIM  geometry"), "{text}");

@@ -159,6 +159,7 @@ fn tiny_scene_end_to_end() {
         objective: opts.objective.name().to_string(),
         times: pipeline::RunTimes::default(),
         ranges: pipeline::range::ranges(&again.samples),
+        lattices: Vec::new(),
     };
     // Stored bakes keep each held-out view's scores, so a re-run can
     // still compare its sample bakes with their noise.

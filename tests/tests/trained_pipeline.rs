@@ -292,7 +292,8 @@ fn a_trained_run_bakes_from_fields_and_says_so() {
         .filter(|e| e.path().extension().is_some_and(|x| x == "safetensors"))
         .collect();
     assert_eq!(fields.len(), networks);
-    // Every planned object has an asset from the trained baker.
+    // Every planned object has an asset from the trained baker, baked at
+    // its network's chosen lattice.
     for o in &run.realised.objects {
         assert!(o.asset.join("mlp.json").is_file(), "{}", o.asset.display());
         let entry = o.asset.parent().unwrap();
@@ -301,6 +302,10 @@ fn a_trained_run_bakes_from_fields_and_says_so() {
                 .unwrap();
         assert_eq!(details["baker"], "trained");
         assert!(o.file_bytes > 0);
+        let chosen = details["lattice_choice"]["cells"].as_u64();
+        assert_eq!(details["lattice_res"].as_u64(), chosen);
+        let listed = run.lattices.iter().find(|l| l.object == o.name);
+        assert_eq!(listed.map(|l| u64::from(l.cells)), chosen, "{}", o.name);
     }
     let q = run.realised.quality;
     assert!(q.ssim > 0.0 && q.ssim <= 1.0 && q.psnr.is_finite(), "{q:?}");
@@ -312,6 +317,13 @@ fn a_trained_run_bakes_from_fields_and_says_so() {
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(json["baker"], "trained");
     assert!(json["times"]["train_s"].as_f64().unwrap() > 0.0);
+    // Each network's chosen lattice, as its bakes used it.
+    let lattices = json["lattices"].as_array().unwrap();
+    assert_eq!(lattices.len(), networks);
+    for (l, (name, _)) in lattices.iter().zip(&run.networks) {
+        assert_eq!(l["object"], name.as_str());
+        assert!(l["cells"].as_u64().unwrap() > 0);
+    }
 
     // A re-run finds every field and bake in the store.
     let again = pipeline::run_one(&input, &opts, &out, Method::Dp, &device, None, &Quiet).unwrap();

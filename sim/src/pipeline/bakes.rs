@@ -655,6 +655,18 @@ impl BakeStore {
         sweep::stored_lattice(obj, &field_id, &t.bake, at, &self.lattices())
     }
 
+    /// The stored lattice choice of each of `views` that has one, in
+    /// order (what a run's or an evaluation's report records).
+    pub fn stored_lattices<'a>(
+        &self,
+        views: impl IntoIterator<Item = &'a ObjectViews>,
+    ) -> Vec<sweep::LatticeChosen> {
+        views
+            .into_iter()
+            .filter_map(|v| self.stored_lattice(v))
+            .collect()
+    }
+
     /// The feature lattice chosen for `obj`: from `ROOT/lattices/`, or
     /// chosen now (its field trained or loaded first, then three bakes at
     /// the choice's (g, p), [`sweep::chosen_lattice`]). `None` for the

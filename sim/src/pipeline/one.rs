@@ -50,6 +50,9 @@ pub struct RunResult {
     pub times: RunTimes,
     /// Each network's quality range against its views' noise.
     pub ranges: Vec<super::range::NetworkRange>,
+    /// Each network's feature lattice as the trained baker chose it
+    /// (empty for the hull baker or a fixed lattice).
+    pub lattices: Vec<crate::bake::sweep::LatticeChosen>,
 }
 
 /// Wall-clock seconds of a run's parts (what `nerflex run` prints).
@@ -162,6 +165,9 @@ pub fn run_one(
         objective: opts.objective.name().to_string(),
         times,
         ranges: super::range::ranges(&prepared.samples),
+        lattices: opts
+            .bake_store()
+            .stored_lattices(prepared.networks.iter().map(|n| &n.views)),
     })
 }
 
@@ -230,6 +236,7 @@ struct ReportJson<'a> {
     steady_fps: f64,
     loaded_at_s: Option<f64>,
     profiler_ranges: &'a [super::range::NetworkRange],
+    lattices: &'a [crate::bake::sweep::LatticeChosen],
 }
 
 #[derive(Serialize)]
@@ -427,6 +434,7 @@ impl RunResult {
             steady_fps: self.simulation.steady_fps,
             loaded_at_s: self.simulation.loaded_at_s,
             profiler_ranges: &self.ranges,
+            lattices: &self.lattices,
         };
         write_text(
             &out.join("report.json"),
