@@ -615,7 +615,8 @@ impl BakeStore {
         );
         // Only a chosen lattice adds to the key: a fixed one's entries keep
         // the keys they had. (The choice is a function of the field, the
-        // views and the settings, all in the key already.)
+        // views and the settings, all in the key already, and of the rule
+        // that reads its stored scores: see below.)
         if let Some(at) = self.lattice_choice_at() {
             h.write(format!("lattice chosen at {at:?}").as_bytes());
             // A stored choice the tie rule reads as another (one made
