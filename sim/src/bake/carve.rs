@@ -484,30 +484,48 @@ pub fn shell(sil: &Silhouettes, cube: &Aabb, g: u32) -> ShellGrid {
 /// per-texel test, so texels are tested only against the views where the
 /// quad straddles the silhouette's edge.
 pub fn texel_occupancy_hull(sil: &Silhouettes, quads: &[Quad], p: u32) -> Vec<bool> {
+    let p = p.max(2);
+    let mut occ = vec![true; quads.len() * (p * p) as usize];
+    carve_texels(sil, quads, p, &mut occ);
+    occ
+}
+
+/// Empties the texels of `opacity` (p² per quad, p ≥ 2, row-major) that
+/// [`texel_occupancy_hull`] puts outside the hull: `opacity` AND it, with
+/// only the opaque texels tested (lego (128, 17): 22 M of 53 M).
+pub fn carve_texels(sil: &Silhouettes, quads: &[Quad], p: u32, opacity: &mut [bool]) {
     let p = p.max(2) as usize;
-    let mut occ = vec![false; quads.len() * p * p];
     let step = 1.0 / (p - 1) as f32;
     let min_seen = sil.len().div_ceil(2).max(1);
-    occ.par_chunks_mut(p * p)
+    opacity
+        .par_chunks_mut(p * p)
         .zip(quads.par_iter())
         .for_each_init(Vec::new, |edge_views, (cell, q)| {
+            if !cell.contains(&true) {
+                return;
+            }
             edge_views.clear();
             let mut seen = 0;
             for (vi, (pr, t)) in sil.projs.iter().zip(&sil.tables).enumerate() {
                 match judge_quad(pr, t, q, sil.window()) {
-                    QuadVerdict::Background => return, // all texels empty
+                    QuadVerdict::Background => {
+                        cell.fill(false); // all texels empty
+                        return;
+                    }
                     QuadVerdict::Inside => seen += 1,
                     QuadVerdict::Edge => edge_views.push(vi),
                 }
             }
             for ty in 0..p {
                 for tx in 0..p {
-                    let x = q.point(tx as f32 * step, ty as f32 * step);
-                    cell[ty * p + tx] = sil.inside_views(x, edge_views, seen, min_seen);
+                    let o = &mut cell[ty * p + tx];
+                    if *o {
+                        let x = q.point(tx as f32 * step, ty as f32 * step);
+                        *o = sil.inside_views(x, edge_views, seen, min_seen);
+                    }
                 }
             }
         });
-    occ
 }
 
 /// What one view says about a whole quad.
@@ -990,6 +1008,26 @@ pub(super) mod tests {
         for px in [0.01, 63.99] {
             let _ = kept(px, Window::Radius(16.0));
         }
+    }
+
+    #[test]
+    fn carving_opaque_texels_is_and_with_the_hull_occupancy() {
+        let views = sphere_views(&[]);
+        let sil = silhouettes(&views, false);
+        let cube = Aabb {
+            min: Vec3::splat(-0.6),
+            max: Vec3::splat(0.6),
+        };
+        let quads = crate::bake::quads::shell_quads(&shell(&sil, &cube, 12));
+        let p = 5;
+        let hull = texel_occupancy_hull(&sil, &quads, p);
+        assert!(hull.contains(&true) && hull.contains(&false));
+        // Some texels already transparent, in a pattern unrelated to the hull.
+        let before: Vec<bool> = (0..hull.len()).map(|i| (i * 7919) % 5 != 0).collect();
+        let mut carved = before.clone();
+        carve_texels(&sil, &quads, p, &mut carved);
+        let expect: Vec<bool> = before.iter().zip(&hull).map(|(a, b)| a & b).collect();
+        assert_eq!(carved, expect);
     }
 
     #[test]

@@ -705,6 +705,8 @@ pub fn bake(
     let (g, p) = (params.grid, params.patch);
     let p2 = (p * p) as usize;
     let t0 = Instant::now();
+    let copy = field.for_point_queries();
+    let field = copy.as_deref().unwrap_or(field);
     let threshold =
         threshold::surface_sigma(field, views, params.surface_alpha, params.surface_miss);
     let surface = extract::Surface::with_sigma(field, threshold.sigma);
@@ -728,10 +730,7 @@ pub fn bake(
     // A point on an opaque object projects onto its silhouette in every
     // view: texels that some training view shows as background go.
     if let (true, Some(sil)) = (params.hull_carve, &sil) {
-        let hull = super::carve::texel_occupancy_hull(sil, &geo.quads, p);
-        for (o, h) in geo.opacity.iter_mut().zip(hull) {
-            *o &= h;
-        }
+        super::carve::carve_texels(sil, &geo.quads, p, &mut geo.opacity);
     }
     // 3 MB a view at 800 px: not kept through the G-buffers' peak.
     drop(sil);

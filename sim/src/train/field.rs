@@ -40,6 +40,13 @@ pub trait RadianceField: Send + Sync {
     /// [0, 1]) at world point `p` seen along the unit direction `dir`
     /// (pointing from the camera towards `p`).
     fn color(&self, p: Vec3, dir: Vec3) -> Vec3;
+
+    /// The same field laid out for many scattered point queries (the
+    /// bake's), answering every query with the same bits; `None` when
+    /// this one is already as fast. Built once per bake.
+    fn for_point_queries(&self) -> Option<Box<dyn RadianceField + '_>> {
+        None
+    }
 }
 
 /// A density threshold prepared by [`RadianceField::inside_threshold`].

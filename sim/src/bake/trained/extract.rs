@@ -616,11 +616,27 @@ pub(super) fn voxel_quads(
                     s.inside(q)
                 };
                 let bits = if same {
+                    *o = first_entry(n, positive, |d| c0 >> d & 1 == 1).is_some();
                     c0
                 } else {
-                    (0..n).fold(0u64, |acc, d| acc | u64::from(sample(step * d as f32)) << d)
+                    // Sampled in the order `first_entry` reads the depths,
+                    // stopping at the entry: the samples beyond it would
+                    // not change the answer, and `bits` is read again
+                    // below only when there is none (then it is whole).
+                    let mut bits = 0u64;
+                    let mut prev = None;
+                    for k in 0..n {
+                        let d = if positive { n - 1 - k } else { k };
+                        let now = sample(step * d as f32);
+                        bits |= u64::from(now) << d;
+                        if now && prev == Some(false) {
+                            *o = true;
+                            break;
+                        }
+                        prev = Some(now);
+                    }
+                    bits
                 };
-                *o = first_entry(n, positive, |d| bits >> d & 1 == 1).is_some();
                 // The reach only adds: a line the slab leaves transparent
                 // is looked at again with the two samples beyond its ends
                 // (the lattice lines' where the four agree, else its own).

@@ -266,9 +266,14 @@ fn axpy(acc: &mut Lanes, x: &Lanes, w: f32) {
 /// `acc[l] += x[l] · y[l]` over the lanes.
 #[inline(always)]
 fn fma_lanes(acc: &mut Lanes, x: &Lanes, y: &Lanes) {
-    for ((a, &u), &v) in acc.iter_mut().zip(x).zip(y) {
+    // Through a local copy: summed in place, the lanes stayed scalar once
+    // inlined into the fine-tune (eight loads, multiplies, adds and stores
+    // per weight, 6 % of a lego bake's CPU); the same operations per lane.
+    let mut s = *acc;
+    for ((a, &u), &v) in s.iter_mut().zip(x).zip(y) {
         *a += u * v;
     }
+    *acc = s;
 }
 
 /// [`dense`] of each lane, in its order of operations.
