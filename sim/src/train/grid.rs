@@ -612,16 +612,21 @@ mod tests {
         assert!(g.corners(Vec3::splat(1.5)).is_some());
     }
 
+    /// A cube off the origin, for the inside tests.
+    fn skewed_cube() -> Aabb {
+        Aabb {
+            min: Vec3::new(-1.0, -0.5, 0.25),
+            max: Vec3::new(1.0, 1.5, 2.25),
+        }
+    }
+
     /// The fast inside test answers as `density(p) >= σ` everywhere,
     /// thresholds that are some point's exact density included.
     #[test]
     fn is_inside_matches_the_density_test() {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(15);
-        let cube = Aabb {
-            min: Vec3::new(-1.0, -0.5, 0.25),
-            max: Vec3::new(1.0, 1.5, 2.25),
-        };
+        let cube = skewed_cube();
         let keep: Vec<bool> = (0..9 * 9 * 9).map(|_| rng.random::<f32>() < 0.8).collect();
         let mut g = SparseGrid::new(8, cube, 1, |i, j, k| keep[((k * 9 + j) * 9 + i) as usize]);
         for v in g.values.iter_mut() {
@@ -673,10 +678,7 @@ mod tests {
     fn the_density_copy_answers_with_the_same_bits() {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(16);
-        let cube = Aabb {
-            min: Vec3::new(-1.0, -0.5, 0.25),
-            max: Vec3::new(1.0, 1.5, 2.25),
-        };
+        let cube = skewed_cube();
         for degree in 0..3 {
             let keep: Vec<bool> = (0..9 * 9 * 9).map(|_| rng.random::<f32>() < 0.7).collect();
             let mut g = SparseGrid::new(8, cube, degree, |i, j, k| {
