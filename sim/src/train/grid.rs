@@ -488,7 +488,7 @@ impl RadianceField for SparseGrid {
 /// the same bits, but each corner's density is 4 bytes beside its
 /// x-neighbour's instead of one cache line of a 64- or 128-byte record
 /// (lego's 509 MB field: a 16 MB array). The bake's extraction asks the
-/// density at some 200 M points in a random order.
+/// density at some 190 M points scattered over the object.
 pub struct DensityCopy<'a> {
     grid: &'a SparseGrid,
     raw: Vec<f32>,
