@@ -492,7 +492,7 @@ pub fn texel_occupancy_hull(sil: &Silhouettes, quads: &[Quad], p: u32) -> Vec<bo
 
 /// Empties the texels of `opacity` (p² per quad, p ≥ 2, row-major) that
 /// [`texel_occupancy_hull`] puts outside the hull: `opacity` AND it, with
-/// only the opaque texels tested (lego (128, 17): 22 M of 53 M).
+/// only the opaque texels tested.
 pub fn carve_texels(sil: &Silhouettes, quads: &[Quad], p: u32, opacity: &mut [bool]) {
     let p = p.max(2) as usize;
     let step = 1.0 / (p - 1) as f32;
