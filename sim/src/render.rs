@@ -3,9 +3,12 @@
 //!
 //! Per frame: every quad is projected once ([`ScreenQuad::project`]) and
 //! binned to the 32 × 32 tiles its box touches; each tile then runs the same
-//! [`TileRenderer`] a microcontroller runs (drawing its quads in asset
-//! order, so results equal [`nerflex_core::raster::render_frame`]'s) and
-//! shades its covered pixels once. `--float` shades the same G-buffer with
+//! [`TileRenderer`] a microcontroller runs, drawing its quads nearest
+//! first and skipping those already hidden ([`near_first`],
+//! [`TileRenderer::draw_by_id`]): the samples of drawing them in asset
+//! order, so results equal [`nerflex_core::raster::render_frame`]'s, with
+//! fewer alpha tests (the tile counters differ). It then shades its covered
+//! pixels once. `--float` shades the same G-buffer with
 //! the `f32` MLP ([`shade_f32`]) instead.
 //!
 //! [`try_render_scene_narrow`] shades with the core's narrow shader
@@ -34,6 +37,7 @@
 
 use crate::asset::Asset;
 use crate::camera::Camera;
+use crate::prefetch::prefetch;
 use image::{Rgba, RgbaImage};
 use nerflex_core::raster::{
     mean_texel, Part, RasterError, Sample, ScreenQuad, TileRenderer, TileStats, View, BACKGROUND,
@@ -128,6 +132,53 @@ struct TileOut {
     visible: Vec<u32>,
 }
 
+/// Each quad's [`ScreenQuad::nearest`] `1/w`, as bits that sort like it
+/// (it is never negative): the key [`near_first`] sorts on.
+pub(crate) fn nearness(projected: &[ScreenQuad]) -> Vec<u32> {
+    projected.iter().map(|sq| sq.nearest().to_bits()).collect()
+}
+
+/// Quads ahead [`near_first`] asks the cache for.
+const PREFETCH_AHEAD: usize = 8;
+
+/// A bin's quads (indices into `projected`, each with its `nearness`)
+/// nearest first, ties to the lower index, sorted in `keyed` (scratch):
+/// for [`TileRenderer::draw_by_id`] (frames and the bake's G-buffers) and
+/// [`TwoLayers::draw_at`](nerflex_core::raster::TwoLayers::draw_at). Drawn near first, most fragments lie
+/// behind what is drawn already and skip their alpha test, and whole
+/// quads can be skipped ([`TileRenderer::hides`]); a lego bake's views
+/// are otherwise mostly drawn back to front (two thirds of the two-layer
+/// draw's fragments came nearer than the front). Only the bin is sorted,
+/// not the quads, so a tile reads the same quads' memory as in index
+/// order, if not in its order: the quads a few turns ahead are
+/// prefetched.
+pub(crate) fn near_first<'a>(
+    bin: &[u32],
+    projected: &'a [ScreenQuad],
+    nearness: &[u32],
+    keyed: &'a mut Vec<u64>,
+) -> impl Iterator<Item = (u32, &'a ScreenQuad, f32)> + 'a {
+    // `1/w ≥ 0`, so its bits sort as it does; complemented: nearest first.
+    keyed.clear();
+    keyed.extend(bin.iter().map(|&i| {
+        let near = nearness.get(i as usize).copied().unwrap_or(0);
+        (u64::from(!near) << 32) | u64::from(i)
+    }));
+    keyed.sort_unstable();
+    let keyed: &'a [u64] = keyed;
+    keyed.iter().enumerate().filter_map(move |(j, &k)| {
+        if let Some(sq) = keyed
+            .get(j + PREFETCH_AHEAD)
+            .and_then(|&a| projected.get(a as u32 as usize))
+        {
+            prefetch(sq);
+        }
+        let i = k as u32;
+        let near = f32::from_bits(!((k >> 32) as u32));
+        projected.get(i as usize).map(|sq| (i, sq, near))
+    })
+}
+
 /// Projects, bins and rasterizes; `shade` turns each finished tile into its output.
 fn run_tiles<F>(
     view: &View,
@@ -152,6 +203,7 @@ where
     let drawn = projected.len() as u32;
     let t = TILE as u32;
     let (bins, tx) = tile_bins(&projected, view, t);
+    let nearness = nearness(&projected);
     // One task per row of tiles, each with one renderer (16 KiB) reused
     // across its tiles: enough tasks to balance, few set-ups.
     let tiles: Vec<TileOut> = bins
@@ -159,6 +211,7 @@ where
         .enumerate()
         .flat_map_iter(|(row, bins_row)| {
             let mut tile = Box::new(TileRenderer::<TILE, TILE>::new());
+            let mut keyed = Vec::new();
             let mut out = Vec::with_capacity(bins_row.len());
             for (col, bin) in bins_row.iter().enumerate() {
                 tile.begin(view, col as u32 * t, row as u32 * t);
@@ -174,10 +227,12 @@ where
                     });
                     continue;
                 }
-                for &i in bin {
-                    let sq = &projected[i as usize];
+                for (_, sq, near) in near_first(bin, &projected, &nearness, &mut keyed) {
+                    if tile.hides(sq, near) {
+                        continue;
+                    }
                     if let Some(p) = parts.get(sq.part as usize) {
-                        tile.draw(sq, &p.atlas);
+                        tile.draw_by_id(sq, &p.atlas);
                     }
                 }
                 let mut visible = Vec::new();

@@ -9,7 +9,6 @@ use rayon::prelude::*;
 use super::super::atlas::AtlasLayout;
 use super::super::{BakeError, BakeView};
 use crate::asset::Asset;
-use crate::prefetch::prefetch;
 use crate::render::{supersampled_view, view_of};
 use nerflex_core::raster::{
     AlphaBits, Quad as RasterQuad, ScreenQuad, TileRenderer, View as RasterView, SUPERSAMPLE,
@@ -257,52 +256,7 @@ pub(super) fn bin(quads: &[&[RasterQuad]], view: &nerflex_core::raster::View) ->
     }
 }
 
-/// Each quad's [`ScreenQuad::nearest`] `1/w`, as bits that sort like it
-/// (it is never negative): the key [`near_first`] sorts on.
-pub(super) fn nearness(projected: &[ScreenQuad]) -> Vec<u32> {
-    projected.iter().map(|sq| sq.nearest().to_bits()).collect()
-}
-
-/// Quads ahead [`near_first`] asks the cache for.
-const PREFETCH_AHEAD: usize = 8;
-
-/// A bin's quads (indices into `projected`, each with its `nearness`)
-/// nearest first, ties to the lower index, sorted in `keyed` (scratch):
-/// for [`TwoLayers::draw_at`](nerflex_core::raster::TwoLayers::draw_at)
-/// and [`TileRenderer::draw_by_id`]. Drawn near first, most fragments lie
-/// behind what is drawn already and skip their alpha test, and whole
-/// quads can be skipped ([`TileRenderer::hides`]); a lego bake's views
-/// are otherwise mostly drawn back to front (two thirds of the two-layer
-/// draw's fragments came nearer than the front). Only the bin is sorted,
-/// not the quads, so a tile reads the same quads' memory as in index
-/// order, if not in its order: the quads a few turns ahead are
-/// prefetched.
-pub(super) fn near_first<'a>(
-    bin: &[u32],
-    projected: &'a [ScreenQuad],
-    nearness: &[u32],
-    keyed: &'a mut Vec<u64>,
-) -> impl Iterator<Item = (u32, &'a ScreenQuad, f32)> + 'a {
-    // `1/w ≥ 0`, so its bits sort as it does; complemented: nearest first.
-    keyed.clear();
-    keyed.extend(bin.iter().map(|&i| {
-        let near = nearness.get(i as usize).copied().unwrap_or(0);
-        (u64::from(!near) << 32) | u64::from(i)
-    }));
-    keyed.sort_unstable();
-    let keyed: &'a [u64] = keyed;
-    keyed.iter().enumerate().filter_map(move |(j, &k)| {
-        if let Some(sq) = keyed
-            .get(j + PREFETCH_AHEAD)
-            .and_then(|&a| projected.get(a as u32 as usize))
-        {
-            prefetch(sq);
-        }
-        let i = k as u32;
-        let near = f32::from_bits(!((k >> 32) as u32));
-        projected.get(i as usize).map(|sq| (i, sq, near))
-    })
-}
+pub(super) use crate::render::{near_first, nearness};
 
 /// Draws a bin's quads into `tile` (begun) nearest first (ids ascend with
 /// the index), the hidden ones skipped: the samples of drawing them all
