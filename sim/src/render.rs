@@ -4,7 +4,7 @@
 //! Per frame: every quad is projected once ([`ScreenQuad::project`]) and
 //! binned to the 32 × 32 tiles its box touches; each tile then runs the same
 //! [`TileRenderer`] a microcontroller runs, drawing its quads nearest
-//! first and skipping those already hidden ([`near_first`],
+//! first and skipping those already hidden (`near_first`,
 //! [`TileRenderer::draw_by_id`]): the samples of drawing them in asset
 //! order, so results equal [`nerflex_core::raster::render_frame`]'s, with
 //! fewer alpha tests (the tile counters differ). It then shades its covered
