@@ -118,3 +118,50 @@ pub fn small_capture(
     make_capture(&spec, &out, &|| {}).expect("generating a test capture");
     out
 }
+
+/// An in-memory framebuffer for the core's `DrawTarget` path
+/// (`nerflex_core::raster::render_frame`); pixels outside it are dropped.
+pub struct Fb(pub nerflex_sim::asset::image::RgbaImage);
+
+impl nerflex_core::raster::embedded_graphics_core::geometry::OriginDimensions for Fb {
+    fn size(&self) -> nerflex_core::raster::embedded_graphics_core::geometry::Size {
+        nerflex_core::raster::embedded_graphics_core::geometry::Size::new(
+            self.0.width(),
+            self.0.height(),
+        )
+    }
+}
+
+impl nerflex_core::raster::embedded_graphics_core::draw_target::DrawTarget for Fb {
+    type Color = nerflex_core::raster::embedded_graphics_core::pixelcolor::Rgb888;
+    type Error = std::convert::Infallible;
+    fn draw_iter<I>(&mut self, pixels: I) -> Result<(), Self::Error>
+    where
+        I: IntoIterator<Item = nerflex_core::raster::embedded_graphics_core::Pixel<Self::Color>>,
+    {
+        use nerflex_core::raster::embedded_graphics_core::pixelcolor::RgbColor;
+        use nerflex_core::raster::embedded_graphics_core::Pixel;
+        for Pixel(p, c) in pixels {
+            let (Ok(x), Ok(y)) = (u32::try_from(p.x), u32::try_from(p.y)) else {
+                continue;
+            };
+            if x < self.0.width() && y < self.0.height() {
+                let rgba = nerflex_sim::asset::image::Rgba([c.r(), c.g(), c.b(), 255]);
+                self.0.put_pixel(x, y, rgba);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// An asset's shapes as the core's frame renderer takes them.
+pub fn core_parts(a: &nerflex_sim::asset::Asset) -> Vec<nerflex_core::raster::Part<'_>> {
+    a.shapes
+        .iter()
+        .map(|sh| nerflex_core::raster::Part {
+            quads: &sh.quads,
+            atlas: sh.atlas.atlas(),
+            mlp: a.mlp.fixed(),
+        })
+        .collect()
+}

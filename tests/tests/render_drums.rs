@@ -1,11 +1,12 @@
 //! The renderer on the real drums shape: fixed vs float, host vs the
 //! core's tile-by-tile `DrawTarget` path, coverage pass, dataset cameras.
 
-use nerflex_core::raster::{embedded_graphics_core, glam, render_frame, TileRenderer};
+use nerflex_core::raster::{glam, render_frame, TileRenderer};
 use nerflex_sim::asset::image::RgbaImage;
 use nerflex_sim::asset::Asset;
 use nerflex_sim::camera::{Camera, Intrinsics, Transforms};
 use nerflex_sim::render::{coverage, render, view_of, RenderOptions};
+use nerflex_tests::Fb;
 use std::sync::OnceLock;
 
 /// PSNR (dB) of the RGB channels of two equal-size images (local helper:
@@ -129,49 +130,13 @@ fn drums_at_30_degrees_fixed_and_float_agree_above_45_db() {
     assert!(p >= 45.0, "PSNR {p}");
 }
 
-/// In-memory framebuffer for the core's `DrawTarget` path.
-struct Fb(RgbaImage);
-
-impl embedded_graphics_core::geometry::OriginDimensions for Fb {
-    fn size(&self) -> embedded_graphics_core::geometry::Size {
-        embedded_graphics_core::geometry::Size::new(self.0.width(), self.0.height())
-    }
-}
-
-impl embedded_graphics_core::draw_target::DrawTarget for Fb {
-    type Color = embedded_graphics_core::pixelcolor::Rgb888;
-    type Error = std::convert::Infallible;
-    fn draw_iter<I>(&mut self, it: I) -> Result<(), Self::Error>
-    where
-        I: IntoIterator<Item = embedded_graphics_core::Pixel<Self::Color>>,
-    {
-        use embedded_graphics_core::pixelcolor::RgbColor;
-        for embedded_graphics_core::Pixel(p, c) in it {
-            self.0.put_pixel(
-                p.x as u32,
-                p.y as u32,
-                nerflex_sim::asset::image::Rgba([c.r(), c.g(), c.b(), 255]),
-            );
-        }
-        Ok(())
-    }
-}
-
 #[test]
 fn host_renderer_equals_the_microcontroller_tile_path_and_coverage_pass() {
     let Some(a) = drums() else { return };
     let cam = orbit(200.0, 15.0, 320);
     let (host, s) = render(a, &cam, &ONE_SAMPLE);
     let view = view_of(&cam).unwrap();
-    let parts: Vec<_> = a
-        .shapes
-        .iter()
-        .map(|sh| nerflex_core::raster::Part {
-            quads: &sh.quads,
-            atlas: sh.atlas.atlas(),
-            mlp: a.mlp.fixed(),
-        })
-        .collect();
+    let parts = nerflex_tests::core_parts(a);
     let mut fb = Fb(RgbaImage::new(320, 320));
     // A 16 × 8 tile: 2 KiB of G-buffer, microcontroller-sized.
     let mut tile = Box::new(TileRenderer::<16, 8>::new());

@@ -5,14 +5,13 @@
 //! coplanar quads, and cameras close enough that quads cross the camera
 //! plane and leave the frame. No data needed.
 
-use nerflex_core::raster::{
-    embedded_graphics_core, glam, render_frame, Quad, TileRenderer, Vertex,
-};
+use nerflex_core::raster::{glam, render_frame, Quad, TileRenderer, Vertex};
 use nerflex_core::shader::MlpWeights;
 use nerflex_sim::asset::image::{Rgba, RgbaImage};
 use nerflex_sim::asset::{Asset, AtlasPair, Mlp, Shape};
 use nerflex_sim::camera::{Camera, Intrinsics};
 use nerflex_sim::render::{render, view_of, RenderOptions};
+use nerflex_tests::Fb;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -88,37 +87,6 @@ fn asset(n: u32, seed: u64) -> Asset {
     }
 }
 
-/// An image as the core's `DrawTarget` sees it.
-struct Fb(RgbaImage);
-
-impl embedded_graphics_core::geometry::OriginDimensions for Fb {
-    fn size(&self) -> embedded_graphics_core::geometry::Size {
-        embedded_graphics_core::geometry::Size::new(self.0.width(), self.0.height())
-    }
-}
-
-impl embedded_graphics_core::draw_target::DrawTarget for Fb {
-    type Color = embedded_graphics_core::pixelcolor::Rgb888;
-    type Error = core::convert::Infallible;
-    fn draw_iter<I>(&mut self, pixels: I) -> Result<(), Self::Error>
-    where
-        I: IntoIterator<Item = embedded_graphics_core::Pixel<Self::Color>>,
-    {
-        use embedded_graphics_core::pixelcolor::RgbColor;
-        for embedded_graphics_core::Pixel(p, c) in pixels {
-            if p.x >= 0
-                && p.y >= 0
-                && (p.x as u32) < self.0.width()
-                && (p.y as u32) < self.0.height()
-            {
-                self.0
-                    .put_pixel(p.x as u32, p.y as u32, Rgba([c.r(), c.g(), c.b(), 255]));
-            }
-        }
-        Ok(())
-    }
-}
-
 const ONE_SAMPLE: RenderOptions = RenderOptions {
     float: false,
     supersample: false,
@@ -128,15 +96,7 @@ const ONE_SAMPLE: RenderOptions = RenderOptions {
 fn nearest_first_draws_equal_the_in_order_tile_path() {
     for seed in 0..3 {
         let a = asset(400, seed);
-        let parts: Vec<_> = a
-            .shapes
-            .iter()
-            .map(|sh| nerflex_core::raster::Part {
-                quads: &sh.quads,
-                atlas: sh.atlas.atlas(),
-                mlp: a.mlp.fixed(),
-            })
-            .collect();
+        let parts = nerflex_tests::core_parts(&a);
         // From outside, at the cube's edge, and inside it.
         for (k, eye) in [[2.5f32, 1.0, 0.8], [0.3, -0.9, 0.4], [0.05, 0.1, -0.02]]
             .into_iter()
