@@ -144,8 +144,9 @@ const PREFETCH_AHEAD: usize = 8;
 /// A bin's quads (indices into `projected`, each with its `nearness`)
 /// nearest first, ties to the lower index, sorted in `keyed` (scratch):
 /// for [`TileRenderer::draw_by_id`] (frames and the bake's G-buffers) and
-/// [`TwoLayers::draw_at`](nerflex_core::raster::TwoLayers::draw_at). Drawn near first, most fragments lie
-/// behind what is drawn already and skip their alpha test, and whole
+/// [`TwoLayers::draw_at`](nerflex_core::raster::TwoLayers::draw_at).
+/// Drawn near first, most fragments lie behind what is drawn already and
+/// skip their alpha test, and whole
 /// quads can be skipped ([`TileRenderer::hides`]); a lego bake's views
 /// are otherwise mostly drawn back to front (two thirds of the two-layer
 /// draw's fragments came nearer than the front). Only the bin is sorted,
