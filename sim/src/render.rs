@@ -40,8 +40,8 @@ use crate::camera::Camera;
 use crate::prefetch::prefetch;
 use image::{Rgba, RgbaImage};
 use nerflex_core::raster::{
-    mean_texel, Part, RasterError, Sample, ScreenQuad, TileRenderer, TileStats, View, BACKGROUND,
-    SUPERSAMPLE,
+    mean_texel, AlphaTest, Part, RasterError, Sample, ScreenQuad, TileRenderer, TileStats, View,
+    BACKGROUND, SUPERSAMPLE,
 };
 use nerflex_core::shader::narrow::batch::{self, BatchInput, LANES};
 use nerflex_core::shader::narrow::{check_samples, NarrowMlp, INPUT_PAIRS};
@@ -180,6 +180,28 @@ pub(crate) fn near_first<'a>(
     })
 }
 
+/// Draws a bin's quads into `tile` (begun) nearest first (ids ascend with
+/// the index), the hidden ones skipped: the samples of drawing them all
+/// in order ([`near_first`], [`TileRenderer::draw_by_id`]); `alpha` gives
+/// a part's alpha test.
+pub(crate) fn draw_near_first<'p, A: AlphaTest + ?Sized + 'p>(
+    tile: &mut TileRenderer<TILE, TILE>,
+    bin: &[u32],
+    projected: &[ScreenQuad],
+    nearness: &[u32],
+    keyed: &mut Vec<u64>,
+    alpha: impl Fn(u16) -> Option<&'p A>,
+) {
+    for (_, sq, near) in near_first(bin, projected, nearness, keyed) {
+        if tile.hides(sq, near) {
+            continue;
+        }
+        if let Some(a) = alpha(sq.part) {
+            tile.draw_by_id(sq, a);
+        }
+    }
+}
+
 /// Projects, bins and rasterizes; `shade` turns each finished tile into its output.
 fn run_tiles<F>(
     view: &View,
@@ -228,14 +250,9 @@ where
                     });
                     continue;
                 }
-                for (_, sq, near) in near_first(bin, &projected, &nearness, &mut keyed) {
-                    if tile.hides(sq, near) {
-                        continue;
-                    }
-                    if let Some(p) = parts.get(sq.part as usize) {
-                        tile.draw_by_id(sq, &p.atlas);
-                    }
-                }
+                draw_near_first(&mut tile, bin, &projected, &nearness, &mut keyed, |part| {
+                    parts.get(part as usize).map(|p| &p.atlas)
+                });
                 let mut visible = Vec::new();
                 tile.for_each_sample(|_, _, s| {
                     if let Some(s) = s {

@@ -14,8 +14,8 @@ use nerflex_core::raster::{
     AlphaBits, Quad as RasterQuad, ScreenQuad, TileRenderer, View as RasterView, SUPERSAMPLE,
 };
 
-/// Tile side of the G-buffer pass (as the host renderer's).
-pub(super) const TILE: usize = 32;
+/// Tile side of the G-buffer pass: the host renderer's.
+pub(super) use crate::render::TILE;
 
 /// Subsamples of a pixel ([`nerflex_core::raster::SUPERSAMPLE`]²).
 pub const SUBSAMPLES: usize = 4;
@@ -123,7 +123,9 @@ fn rasterize_bits(
                 }
                 let (bx, by) = (b as u32 % tx, b as u32 / tx);
                 tile.begin(&view, bx * t, by * t);
-                draw_near_first(&mut tile, bin, &projected, &nearness, &mut keyed, &masks);
+                draw_near_first(&mut tile, bin, &projected, &nearness, &mut keyed, |part| {
+                    masks.get(part as usize)
+                });
                 let (x0, y0, w, h) = tile.rect();
                 for oy in 0..h / ss {
                     for ox in 0..w / ss {
@@ -256,28 +258,7 @@ pub(super) fn bin(quads: &[&[RasterQuad]], view: &nerflex_core::raster::View) ->
     }
 }
 
-pub(super) use crate::render::{near_first, nearness};
-
-/// Draws a bin's quads into `tile` (begun) nearest first (ids ascend with
-/// the index), the hidden ones skipped: the samples of drawing them all
-/// in order ([`near_first`], [`TileRenderer::draw_by_id`]).
-pub(super) fn draw_near_first(
-    tile: &mut TileRenderer<TILE, TILE>,
-    bin: &[u32],
-    projected: &[ScreenQuad],
-    nearness: &[u32],
-    keyed: &mut Vec<u64>,
-    masks: &[AlphaBits<'_>],
-) {
-    for (_, sq, near) in near_first(bin, projected, nearness, keyed) {
-        if tile.hides(sq, near) {
-            continue;
-        }
-        if let Some(mask) = masks.get(sq.part as usize) {
-            tile.draw_by_id(sq, mask);
-        }
-    }
-}
+pub(super) use crate::render::{draw_near_first, near_first, nearness};
 
 /// The texel (`quad · p² + y · p + x`) tile-local sample `(x, y)` of
 /// `tile` shows, if covered.

@@ -104,7 +104,9 @@ pub fn shown_from(
                         continue;
                     }
                     tile.begin(&view, (b as u32 % tx) * t, (b as u32 / tx) * t);
-                    draw_near_first(&mut tile, bin, &projected, &nearness, &mut keyed, &masks);
+                    draw_near_first(&mut tile, bin, &projected, &nearness, &mut keyed, |part| {
+                        masks.get(part as usize)
+                    });
                     let (_, _, w, h) = tile.rect();
                     for y in 0..h {
                         for x in 0..w {
