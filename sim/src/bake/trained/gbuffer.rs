@@ -167,15 +167,60 @@ fn rasterize_bits(
             Ok((out, subs, background))
         })
         .collect();
-    let mut g = GBuffers::default();
-    for r in per {
-        let (px, subs, bg) = r?;
-        g.per_view.push(px.len());
-        g.pixels.extend(px);
-        g.subsamples.extend(subs);
-        g.background.extend(bg);
+    let parts = per.into_iter().collect::<Result<Vec<_>, _>>()?;
+    Ok(GBuffers::joined(parts))
+}
+
+/// The GPixel that [`concat`] fills before copying.
+const NO_PIXEL: GPixel = GPixel {
+    texel: NO_TEXEL,
+    dir: [0.0; 3],
+    target: [0.0; 3],
+};
+
+/// `n` values of `value`, written on all cores: a large vector is fresh
+/// pages, and one thread faulting them in leaves the other cores idle
+/// (on lego (128, 17) the judgement's 37 M per-texel sums, written by
+/// one thread, were the longest such stretch: about a second).
+pub(super) fn filled<T: Send>(n: usize, value: impl Fn() -> T + Sync + Send) -> Vec<T> {
+    (0..n).into_par_iter().map(|_| value()).collect()
+}
+
+/// `parts` one after the other, filled and copied on all cores. The
+/// G-buffers of lego (128, 17) are about 450 MB of fresh pages; one
+/// thread appending them part by part left the other core idle for a
+/// third to half a second, three times a bake (a perf timeline, docs/baking.md "Session
+/// 50").
+pub(super) fn concat<T: Copy + Send + Sync>(parts: &[&[T]], fill: T) -> Vec<T> {
+    let total = parts.iter().map(|p| p.len()).sum();
+    let mut out = filled(total, || fill);
+    let mut rest = out.as_mut_slice();
+    let mut dsts = Vec::with_capacity(parts.len());
+    for p in parts {
+        let (d, r) = rest.split_at_mut(p.len());
+        dsts.push(d);
+        rest = r;
     }
-    Ok(g)
+    dsts.into_par_iter()
+        .zip(parts)
+        .for_each(|(d, s)| d.copy_from_slice(s));
+    out
+}
+
+impl GBuffers {
+    /// The G-buffers of views whose (pixels, subsamples, background)
+    /// are `parts`, view after view.
+    pub(super) fn joined(parts: Vec<(Vec<GPixel>, Vec<Subsamples>, Vec<u32>)>) -> Self {
+        let pixels: Vec<&[GPixel]> = parts.iter().map(|p| p.0.as_slice()).collect();
+        let subs: Vec<&[Subsamples]> = parts.iter().map(|p| p.1.as_slice()).collect();
+        let background: Vec<&[u32]> = parts.iter().map(|p| p.2.as_slice()).collect();
+        GBuffers {
+            per_view: parts.iter().map(|p| p.0.len()).collect(),
+            pixels: concat(&pixels, NO_PIXEL),
+            subsamples: concat(&subs, [NO_TEXEL; SUBSAMPLES]),
+            background: concat(&background, NO_TEXEL),
+        }
+    }
 }
 
 /// The photo's object coverage (0–255) at pixel `(x, y)` of `v` and its
@@ -601,6 +646,58 @@ pub fn probe(
 mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
+
+    #[test]
+    fn joined_views_are_their_parts_in_order() {
+        let px = |t: u32| GPixel {
+            texel: t,
+            dir: [t as f32, 0.0, 1.0],
+            target: [0.5; 3],
+        };
+        // Sizes around rayon's splits, and empty views between.
+        let sizes = [0usize, 3, 0, 70_001, 1, 0, 4096];
+        let mut next = 0u32;
+        let parts: Vec<(Vec<GPixel>, Vec<Subsamples>, Vec<u32>)> = sizes
+            .iter()
+            .map(|&n| {
+                let pixels: Vec<GPixel> = (0..n)
+                    .map(|_| {
+                        next += 1;
+                        px(next)
+                    })
+                    .collect();
+                let subs = pixels
+                    .iter()
+                    .map(|p| [p.texel, NO_TEXEL, 7, p.texel])
+                    .collect();
+                let background = pixels.iter().map(|p| p.texel * 2).take(n / 2).collect();
+                (pixels, subs, background)
+            })
+            .collect();
+        let g = GBuffers::joined(parts.clone());
+        assert_eq!(g.per_view, sizes);
+        let flat = |k: usize| -> Vec<u32> {
+            parts
+                .iter()
+                .flat_map(|p| match k {
+                    0 => p.0.iter().map(|x| x.texel).collect::<Vec<_>>(),
+                    1 => p.1.iter().map(|s| s[3]).collect(),
+                    _ => p.2.clone(),
+                })
+                .collect()
+        };
+        assert_eq!(
+            g.pixels.iter().map(|p| p.texel).collect::<Vec<_>>(),
+            flat(0)
+        );
+        assert!(g.pixels.iter().all(|p| p.dir[0] == p.texel as f32));
+        assert_eq!(
+            g.subsamples.iter().map(|s| s[3]).collect::<Vec<_>>(),
+            flat(1)
+        );
+        assert_eq!(g.background, flat(2));
+        assert_eq!(g.pixels.len(), (1..=next).count());
+    }
 
     /// The bits built from the opacity are those of the exported atlas'
     /// feat0 pages, and the quads those of the asset.

@@ -436,20 +436,12 @@ impl Peel {
                 (pixels, subs, background, lost)
             })
             .collect();
-        let mut g = gbuffer::GBuffers::default();
-        g.pixels
-            .reserve_exact(parts.iter().map(|p| p.0.len()).sum());
-        g.subsamples
-            .reserve_exact(parts.iter().map(|p| p.1.len()).sum());
-        let mut lost = 0;
-        for (pixels, subs, background, l) in parts {
-            g.per_view.push(pixels.len());
-            g.pixels.extend(pixels);
-            g.subsamples.extend(subs);
-            g.background.extend(background);
-            lost += l;
-        }
-        (g, lost)
+        let lost = parts.iter().map(|p| p.3).sum();
+        let parts = parts
+            .into_iter()
+            .map(|(pixels, subs, background, _)| (pixels, subs, background))
+            .collect();
+        (gbuffer::GBuffers::joined(parts), lost)
     }
 
     /// Per quad (`nq` of them, `p2` texels each), whether some pixel's
@@ -501,9 +493,7 @@ fn texel_bytes(
     grid: &FeatureGrid,
     views: &[Vec<PeelPixel>],
 ) -> (Vec<[u8; FEATURES]>, Vec<bool>) {
-    let needed: Vec<AtomicBool> = (0..geo.opacity.len())
-        .map(|_| AtomicBool::new(false))
-        .collect();
+    let needed: Vec<AtomicBool> = gbuffer::filled(geo.opacity.len(), || AtomicBool::new(false));
     views.par_iter().flat_map(|v| v.par_iter()).for_each(|px| {
         for &t in px.front.iter().chain(&px.behind).chain(&px.nearer) {
             if let Some(n) = needed.get(t as usize) {
@@ -669,10 +659,8 @@ pub fn prune(
     let (bytes, readable) = texel_bytes(geo, p, grid, views);
     // Per texel: the summed change of squared error, and whether a pixel
     // shows it.
-    let delta: Vec<AtomicI64> = (0..geo.opacity.len()).map(|_| AtomicI64::new(0)).collect();
-    let shown: Vec<AtomicBool> = (0..geo.opacity.len())
-        .map(|_| AtomicBool::new(false))
-        .collect();
+    let delta: Vec<AtomicI64> = gbuffer::filled(geo.opacity.len(), || AtomicI64::new(0));
+    let shown: Vec<AtomicBool> = gbuffer::filled(geo.opacity.len(), || AtomicBool::new(false));
     let before: f64 = views
         .par_iter()
         .flat_map(|v| v.par_chunks(1024))
