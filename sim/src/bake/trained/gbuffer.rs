@@ -189,8 +189,8 @@ pub(super) fn filled<T: Send>(n: usize, value: impl Fn() -> T + Sync + Send) -> 
 /// `parts` one after the other, filled and copied on all cores. The
 /// G-buffers of lego (128, 17) are about 450 MB of fresh pages; one
 /// thread appending them part by part left the other core idle for a
-/// third to half a second, three times a bake (a perf timeline, docs/baking.md "Session
-/// 50").
+/// third to half a second, three times a bake (a perf timeline:
+/// docs/baking.md, "Session 50").
 pub(super) fn concat<T: Copy + Send + Sync>(parts: &[&[T]], fill: T) -> Vec<T> {
     let total = parts.iter().map(|p| p.len()).sum();
     let mut out = filled(total, || fill);
