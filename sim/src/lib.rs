@@ -24,6 +24,7 @@ pub mod plot;
 mod prefetch;
 pub mod procedural;
 pub mod render;
+pub mod rounding;
 pub mod scene_file;
 pub mod segment;
 pub mod simulate;

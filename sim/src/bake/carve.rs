@@ -22,6 +22,7 @@
 //! judged background. Views without such pixels (every view of a
 //! single-object capture) take exactly the code path they took before.
 
+use crate::rounding::{ceil, floor};
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;
 
@@ -303,8 +304,8 @@ fn point_in_view(p: &Proj, t: &SummedArea, x: Vec3, window: Window) -> PointInVi
     let (ix, iy) = (px as u32, py as u32);
     if let Window::Radius(r) = window {
         // Centres c + ½ within r of the projection: c in [x − ½ − r, x − ½ + r].
-        let lo = |c: f32| (c - 0.5 - r).ceil().max(0.0) as u32;
-        let hi = |c: f32, n: u32| ((c - 0.5 + r).floor() + 1.0).clamp(0.0, n as f32) as u32;
+        let lo = |c: f32| ceil(c - 0.5 - r).max(0.0) as u32;
+        let hi = |c: f32, n: u32| (floor(c - 0.5 + r) + 1.0).clamp(0.0, n as f32) as u32;
         let (x0, y0, x1, y1) = (lo(px), lo(py), hi(px, t.width), hi(py, t.height));
         return if x1 <= x0 || y1 <= y0 || t.count_not_background(x0, y0, x1, y1) == 0 {
             PointInView::Background
@@ -558,10 +559,10 @@ fn judge_quad(p: &Proj, t: &SummedArea, q: &Quad, window: Window) -> QuadVerdict
     if x0 < 0.0 || y0 < 0.0 || x1 >= p.width || y1 >= p.height {
         return QuadVerdict::Edge;
     }
-    let (xa, ya) = (x0.floor() as u32, y0.floor() as u32);
+    let (xa, ya) = (floor(x0) as u32, floor(y0) as u32);
     let (xb, yb) = (
-        (x1.floor() as u32 + 1).min(t.width),
-        (y1.floor() as u32 + 1).min(t.height),
+        (floor(x1) as u32 + 1).min(t.width),
+        (floor(y1) as u32 + 1).min(t.height),
     );
     let count = t.count(xa, ya, xb, yb);
     let (ma, mb) = (
@@ -776,10 +777,10 @@ fn judge_grown(p: &Proj, table: &SummedArea, centre: Vec3, radius: f32, margin: 
         return Verdict::Unseen;
     }
     let clipped = x0 < 0.0 || y0 < 0.0 || x1 > p.width || y1 > p.height;
-    let xa = x0.max(0.0).floor() as u32;
-    let ya = y0.max(0.0).floor() as u32;
-    let xb = (x1.min(p.width).ceil() as u32).min(table.width);
-    let yb = (y1.min(p.height).ceil() as u32).min(table.height);
+    let xa = floor(x0.max(0.0)) as u32;
+    let ya = floor(y0.max(0.0)) as u32;
+    let xb = (ceil(x1.min(p.width)) as u32).min(table.width);
+    let yb = (ceil(y1.min(p.height)) as u32).min(table.height);
     if xa >= xb || ya >= yb {
         return Verdict::Unseen;
     }

@@ -24,6 +24,7 @@
 //! is inside; the first opaque texel a ray meets is up to a voxel behind
 //! the surface (parallax).
 
+use crate::rounding::floor;
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -603,7 +604,7 @@ pub(super) fn voxel_quads(
             let mut occ = vec![false; p2];
             for (t, o) in occ.iter_mut().enumerate() {
                 let x = texel_point(&flat, p, t as u32 % p, t as u32 / p);
-                let cell = |c: f32| ((c / step).floor().max(0.0) as usize).min(m - 1);
+                let cell = |c: f32| (floor(c / step).max(0.0) as usize).min(m - 1);
                 let (j1, j2) = (cell(x[a1] - lo[a1]), cell(x[a2] - lo[a2]));
                 let c0 = column(axis, j1, j2);
                 let around = [(1, 0), (0, 1), (1, 1)];

@@ -13,6 +13,7 @@
 //! interpolation at its point, every pixel's gradient reaches 8 vertices,
 //! and the export samples every opaque texel the same way.
 
+use crate::rounding::floor3;
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -145,7 +146,7 @@ impl FeatureGrid {
     #[inline]
     fn locate(&self, x: Vec3) -> ([u32; 3], Vec3) {
         let u = ((x - self.origin) / self.cell).clamp(Vec3::ZERO, Vec3::splat(self.res as f32));
-        let i = u.floor().min(Vec3::splat((self.res - 1) as f32));
+        let i = floor3(u).min(Vec3::splat((self.res - 1) as f32));
         ([i.x as u32, i.y as u32, i.z as u32], u - i)
     }
 
