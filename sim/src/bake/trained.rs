@@ -124,6 +124,9 @@ pub fn hull_lookup<'s>(
     let mut lookup = super::carve::HullLookup::new(sil, &cube, g);
     let (outside, inside, open) = lookup.counts();
     let settled = lookup.settle_within(|x| surface.inside(x));
+    // Exact (the halves' verdicts are the point test's); the extraction's
+    // inside tests in the voxels left open then project into fewer views.
+    lookup.split_open();
     let report = HullBoundReport {
         grid: g,
         outside,
