@@ -495,38 +495,210 @@ pub fn texel_occupancy_hull(sil: &Silhouettes, quads: &[Quad], p: u32) -> Vec<bo
 /// [`texel_occupancy_hull`] puts outside the hull: `opacity` AND it, with
 /// only the opaque texels tested.
 pub fn carve_texels(sil: &Silhouettes, quads: &[Quad], p: u32, opacity: &mut [bool]) {
+    carve_texels_counted(sil, quads, p, opacity);
+}
+
+/// [`carve_texels`], returning how many (block, view) pairs its blocks
+/// settled and how many they left to the texels' own tests.
+fn carve_texels_counted(
+    sil: &Silhouettes,
+    quads: &[Quad],
+    p: u32,
+    opacity: &mut [bool],
+) -> (u64, u64) {
     let p = p.max(2) as usize;
     let step = 1.0 / (p - 1) as f32;
     let min_seen = sil.len().div_ceil(2).max(1);
+    let cuts = block_cuts(p);
     opacity
         .par_chunks_mut(p * p)
         .zip(quads.par_iter())
-        .for_each_init(Vec::new, |edge_views, (cell, q)| {
+        .map_init(CarveScratch::default, |sc, (cell, q)| {
+            let mut blocks = (0u64, 0u64);
             if !cell.contains(&true) {
-                return;
+                return blocks;
             }
-            edge_views.clear();
+            sc.edge_views.clear();
             let mut seen = 0;
             for (vi, (pr, t)) in sil.projs.iter().zip(&sil.tables).enumerate() {
                 match judge_quad(pr, t, q, sil.window()) {
                     QuadVerdict::Background => {
                         cell.fill(false); // all texels empty
-                        return;
+                        return blocks;
                     }
                     QuadVerdict::Inside => seen += 1,
-                    QuadVerdict::Edge => edge_views.push(vi),
+                    QuadVerdict::Edge => sc.edge_views.push(vi),
                 }
             }
-            for ty in 0..p {
-                for tx in 0..p {
-                    let o = &mut cell[ty * p + tx];
-                    if *o {
-                        let x = q.point(tx as f32 * step, ty as f32 * step);
-                        *o = sil.inside_views(x, edge_views, seen, min_seen);
+            let point = |tx: usize, ty: usize| q.point(tx as f32 * step, ty as f32 * step);
+            if q.twist != Vec3::ZERO {
+                // Not a parallelogram: no block holds its texels' points
+                // within its corners' hull. Texel by texel.
+                for ty in 0..p {
+                    for tx in 0..p {
+                        let o = &mut cell[ty * p + tx];
+                        if *o {
+                            *o = sil.inside_views(point(tx, ty), &sc.edge_views, seen, min_seen);
+                        }
+                    }
+                }
+                return blocks;
+            }
+            // In each straddling view, blocks of texels first (their points
+            // lie within the hull of the block's corner texels' projections):
+            // a block wholly on the silhouette or the background there
+            // settles its texels in that view; the others test texel by
+            // texel. Per texel the same verdicts as testing it in every
+            // straddling view (`Silhouettes::inside_views`): any background
+            // empties it, else it needs `min_seen` views.
+            let nc = cuts.len();
+            sc.seen.clear();
+            sc.seen.resize(p * p, seen as u32);
+            sc.corner.resize(nc * nc, None);
+            for &vi in &sc.edge_views {
+                let (pr, t) = (&sil.projs[vi], &sil.tables[vi]);
+                for (cb, &cy) in cuts.iter().enumerate() {
+                    for (ca, &cx) in cuts.iter().enumerate() {
+                        sc.corner[cb * nc + ca] = project(pr, point(cx, cy));
+                    }
+                }
+                for b in 0..nc - 1 {
+                    let ys = cuts[b]..if b + 2 == nc { p } else { cuts[b + 1] };
+                    for a in 0..nc - 1 {
+                        let xs = cuts[a]..if a + 2 == nc { p } else { cuts[a + 1] };
+                        let alive = ys
+                            .clone()
+                            .any(|ty| cell[ty * p + xs.start..ty * p + xs.end].contains(&true));
+                        if !alive {
+                            continue;
+                        }
+                        let c = [
+                            sc.corner[b * nc + a],
+                            sc.corner[b * nc + a + 1],
+                            sc.corner[(b + 1) * nc + a],
+                            sc.corner[(b + 1) * nc + a + 1],
+                        ];
+                        let verdict = judge_block(pr, t, c, sil.window());
+                        match verdict {
+                            QuadVerdict::Edge => blocks.1 += 1,
+                            _ => blocks.0 += 1,
+                        }
+                        for ty in ys.clone() {
+                            for tx in xs.clone() {
+                                let i = ty * p + tx;
+                                if !cell[i] {
+                                    continue;
+                                }
+                                let v = match verdict {
+                                    QuadVerdict::Background => PointInView::Background,
+                                    QuadVerdict::Inside => PointInView::Counts,
+                                    QuadVerdict::Edge => {
+                                        point_in_view(pr, t, point(tx, ty), sil.window())
+                                    }
+                                };
+                                match v {
+                                    PointInView::Background => cell[i] = false,
+                                    PointInView::Counts => sc.seen[i] += 1,
+                                    PointInView::Silent => {}
+                                }
+                            }
+                        }
                     }
                 }
             }
-        });
+            for (o, &n) in cell.iter_mut().zip(&sc.seen) {
+                *o = *o && n as usize >= min_seen;
+            }
+            blocks
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+}
+
+/// Working memory of [`carve_texels`], one per rayon job.
+#[derive(Default)]
+struct CarveScratch {
+    /// The views a quad straddles the silhouette's edge in.
+    edge_views: Vec<usize>,
+    /// Per texel, the views it is on the silhouette in.
+    seen: Vec<u32>,
+    /// The block corners' projections in the current view.
+    corner: Vec<Option<(f32, f32)>>,
+}
+
+/// Texels per block edge of [`carve_texels`]' blocks (about).
+const BLOCK_TEXELS: usize = 4;
+
+/// The texel indices (along one side of a p-texel patch, p ≥ 2) where
+/// [`carve_texels`]' blocks have their corners: 0 first, p − 1 last.
+/// Block `a` holds the texels from cut `a` up to cut `a + 1`, the last
+/// one's included for the last block.
+fn block_cuts(p: usize) -> Vec<usize> {
+    let n = (p - 1).div_ceil(BLOCK_TEXELS).max(1);
+    (0..=n).map(|k| k * (p - 1) / n).collect()
+}
+
+/// Where `x` projects in a view (pixels), if at least 10⁻³ in front of
+/// the camera: the same operations as [`point_in_view`]'s.
+#[inline]
+fn project(p: &Proj, x: Vec3) -> Option<(f32, f32)> {
+    let c = p.w2c.transform_point3(x);
+    let depth = -c.z;
+    if depth <= 1e-3 {
+        return None;
+    }
+    Some((p.cx + p.fx * c.x / depth, p.cy - p.fy * c.y / depth))
+}
+
+/// What one view says about every point of a block of texels, from its
+/// four corner points' projections (the block a parallelogram, so its
+/// points project into their hull): [`QuadVerdict::Inside`] when every
+/// point's pixel is in frame and not background, so each point's window
+/// counts; [`QuadVerdict::Background`] when every point is in frame and
+/// its whole window background. The box is grown by a pixel on every
+/// side beyond what exact arithmetic needs, so a point's own rounding
+/// cannot carry it out: these verdicts are [`point_in_view`]'s.
+fn judge_block(
+    p: &Proj,
+    t: &SummedArea,
+    corners: [Option<(f32, f32)>; 4],
+    window: Window,
+) -> QuadVerdict {
+    let (mut x0, mut y0, mut x1, mut y1) = (f32::MAX, f32::MAX, f32::MIN, f32::MIN);
+    for c in corners {
+        let Some((px, py)) = c else {
+            return QuadVerdict::Edge;
+        };
+        x0 = x0.min(px);
+        x1 = x1.max(px);
+        y0 = y0.min(py);
+        y1 = y1.max(py);
+    }
+    // Every point in frame, a pixel to spare.
+    if !(x0 >= 1.0 && y0 >= 1.0 && x1 + 1.0 < p.width && y1 + 1.0 < p.height) {
+        return QuadVerdict::Edge;
+    }
+    // The pixels holding the points: [xa, xb) × [ya, yb).
+    let (xa, ya) = (floor(x0) as u32 - 1, floor(y0) as u32 - 1);
+    let (xb, yb) = (
+        (floor(x1) as u32 + 2).min(t.width),
+        (floor(y1) as u32 + 2).min(t.height),
+    );
+    if t.count_not_background(xa, ya, xb, yb) == (xb - xa) * (yb - ya) {
+        return QuadVerdict::Inside;
+    }
+    let m = window.reach();
+    let (ma, mb) = (
+        (xa.saturating_sub(m), ya.saturating_sub(m)),
+        (
+            xb.saturating_add(m).min(t.width),
+            yb.saturating_add(m).min(t.height),
+        ),
+    );
+    if t.count_not_background(ma.0, ma.1, mb.0, mb.1) == 0 {
+        QuadVerdict::Background
+    } else {
+        QuadVerdict::Edge
+    }
 }
 
 /// What one view says about a whole quad.
@@ -1029,6 +1201,82 @@ pub(super) mod tests {
         carve_texels(&sil, &quads, p, &mut carved);
         let expect: Vec<bool> = before.iter().zip(&hull).map(|(a, b)| a & b).collect();
         assert_eq!(carved, expect);
+    }
+
+    /// The block-level carve gives every texel the point test's verdict:
+    /// axis-aligned shell quads and tilted parallelograms across the
+    /// sphere's silhouette, several patch sizes and windows, with and
+    /// without another object's pixels in some views.
+    #[test]
+    fn carved_texels_are_the_point_tests_verdicts() {
+        let cube = Aabb {
+            min: Vec3::splat(-0.6),
+            max: Vec3::splat(0.6),
+        };
+        for hidden in [&[][..], &[0, 1, 2, 3]] {
+            let views = sphere_views(hidden);
+            let instance = !hidden.is_empty();
+            let base = silhouettes(&views, instance);
+            let mut quads = crate::bake::quads::shell_quads(&shell(&base, &cube, 10));
+            // Tilted parallelograms of several sizes around the radius.
+            for k in 0..60 {
+                let a = k as f32 * 0.61;
+                let dir =
+                    Vec3::new(a.cos() * (0.3 * a).sin(), a.sin(), (0.3 * a).cos()).normalize();
+                let centre = (0.4 + 0.004 * (k % 9) as f32) * dir;
+                let u = dir.any_orthonormal_vector() * (0.02 + 0.01 * (k % 5) as f32);
+                let v = dir.cross(u) * (1.0 + 0.3 * (k % 3) as f32) + 0.2 * u;
+                quads.push(crate::bake::quads::Quad {
+                    origin: centre - 0.5 * (u + v),
+                    u,
+                    v,
+                    normal: dir,
+                    voxel: [0; 3],
+                    twist: Vec3::ZERO,
+                });
+            }
+            for sil in [
+                base,
+                silhouettes(&views, instance).with_radius(0.5),
+                silhouettes(&views, instance).with_radius(2.5),
+                silhouettes(&views, instance).with_margin(0),
+                silhouettes(&views, instance).with_margin(2),
+            ] {
+                for p in [2u32, 5, 17, 25] {
+                    let mut carved = vec![true; quads.len() * (p * p) as usize];
+                    let (settled, tested) = carve_texels_counted(&sil, &quads, p, &mut carved);
+                    // Both paths taken where blocks are smaller than the
+                    // quads (at p = 2 the one block is the quad, which
+                    // straddles by definition).
+                    assert!(
+                        tested > 0 && (p < 17 || settled > 0),
+                        "{settled} {tested} at p = {p}"
+                    );
+                    let step = 1.0 / (p - 1) as f32;
+                    let mut mixed = 0;
+                    for (q, cell) in quads.iter().zip(carved.chunks(p as usize * p as usize)) {
+                        for (i, &c) in cell.iter().enumerate() {
+                            let (tx, ty) = (i as u32 % p, i as u32 / p);
+                            let x = q.point(tx as f32 * step, ty as f32 * step);
+                            assert_eq!(c, sil.inside(x), "texel ({tx}, {ty}) at p = {p}: {x}");
+                        }
+                        mixed += usize::from(cell.contains(&true) && cell.contains(&false));
+                    }
+                    assert!(mixed > 5, "{mixed} quads cross the silhouette at p = {p}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn block_cuts_span_the_patch() {
+        for p in 2..40 {
+            let c = block_cuts(p);
+            assert_eq!((c[0], *c.last().unwrap()), (0, p - 1), "p = {p}");
+            assert!(c
+                .windows(2)
+                .all(|w| w[0] < w[1] && w[1] - w[0] <= BLOCK_TEXELS));
+        }
     }
 
     #[test]
