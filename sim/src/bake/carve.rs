@@ -510,108 +510,206 @@ fn carve_texels_counted(
     let step = 1.0 / (p - 1) as f32;
     let min_seen = sil.len().div_ceil(2).max(1);
     let cuts = block_cuts(p);
-    opacity
-        .par_chunks_mut(p * p)
-        .zip(quads.par_iter())
-        .map_init(CarveScratch::default, |sc, (cell, q)| {
-            let mut blocks = (0u64, 0u64);
-            if !cell.contains(&true) {
-                return blocks;
-            }
-            sc.edge_views.clear();
-            let mut seen = 0;
-            for (vi, (pr, t)) in sil.projs.iter().zip(&sil.tables).enumerate() {
-                match judge_quad(pr, t, q, sil.window()) {
-                    QuadVerdict::Background => {
-                        cell.fill(false); // all texels empty
-                        return blocks;
-                    }
-                    QuadVerdict::Inside => seen += 1,
-                    QuadVerdict::Edge => sc.edge_views.push(vi),
+    let carve_one = |sc: &mut CarveScratch, group: &[Verdict], cell: &mut [bool], q: &Quad| {
+        let mut blocks = (0u64, 0u64);
+        if !cell.contains(&true) {
+            return blocks;
+        }
+        sc.edge_views.clear();
+        let mut seen = 0;
+        for (vi, (pr, t)) in sil.projs.iter().zip(&sil.tables).enumerate() {
+            let verdict = match group.get(vi) {
+                Some(Verdict::Inside) => QuadVerdict::Inside,
+                Some(Verdict::Background) => QuadVerdict::Background,
+                _ => judge_quad(pr, t, q, sil.window()),
+            };
+            match verdict {
+                QuadVerdict::Background => {
+                    cell.fill(false); // all texels empty
+                    return blocks;
                 }
+                QuadVerdict::Inside => seen += 1,
+                QuadVerdict::Edge => sc.edge_views.push(vi),
             }
-            let point = |tx: usize, ty: usize| q.point(tx as f32 * step, ty as f32 * step);
-            if q.twist != Vec3::ZERO {
-                // Not a parallelogram: no block holds its texels' points
-                // within its corners' hull. Texel by texel.
-                for ty in 0..p {
-                    for tx in 0..p {
-                        let o = &mut cell[ty * p + tx];
-                        if *o {
-                            *o = sil.inside_views(point(tx, ty), &sc.edge_views, seen, min_seen);
-                        }
-                    }
-                }
-                return blocks;
-            }
-            // In each straddling view, blocks of texels first (their points
-            // lie within the hull of the block's corner texels' projections):
-            // a block wholly on the silhouette or the background there
-            // settles its texels in that view; the others test texel by
-            // texel. Per texel the same verdicts as testing it in every
-            // straddling view (`Silhouettes::inside_views`): any background
-            // empties it, else it needs `min_seen` views.
-            let nc = cuts.len();
-            sc.seen.clear();
-            sc.seen.resize(p * p, seen as u32);
-            sc.corner.resize(nc * nc, None);
-            for &vi in &sc.edge_views {
-                let (pr, t) = (&sil.projs[vi], &sil.tables[vi]);
-                for (cb, &cy) in cuts.iter().enumerate() {
-                    for (ca, &cx) in cuts.iter().enumerate() {
-                        sc.corner[cb * nc + ca] = project(pr, point(cx, cy));
+        }
+        let point = |tx: usize, ty: usize| q.point(tx as f32 * step, ty as f32 * step);
+        if q.twist != Vec3::ZERO {
+            // Not a parallelogram: no block holds its texels' points
+            // within its corners' hull. Texel by texel.
+            for ty in 0..p {
+                for tx in 0..p {
+                    let o = &mut cell[ty * p + tx];
+                    if *o {
+                        *o = sil.inside_views(point(tx, ty), &sc.edge_views, seen, min_seen);
                     }
                 }
-                for b in 0..nc - 1 {
-                    let ys = cuts[b]..if b + 2 == nc { p } else { cuts[b + 1] };
-                    for a in 0..nc - 1 {
-                        let xs = cuts[a]..if a + 2 == nc { p } else { cuts[a + 1] };
-                        let alive = ys
-                            .clone()
-                            .any(|ty| cell[ty * p + xs.start..ty * p + xs.end].contains(&true));
-                        if !alive {
-                            continue;
-                        }
-                        let c = [
-                            sc.corner[b * nc + a],
-                            sc.corner[b * nc + a + 1],
-                            sc.corner[(b + 1) * nc + a],
-                            sc.corner[(b + 1) * nc + a + 1],
-                        ];
-                        let verdict = judge_block(pr, t, c, sil.window());
-                        match verdict {
-                            QuadVerdict::Edge => blocks.1 += 1,
-                            _ => blocks.0 += 1,
-                        }
-                        for ty in ys.clone() {
-                            for tx in xs.clone() {
-                                let i = ty * p + tx;
-                                if !cell[i] {
-                                    continue;
+            }
+            return blocks;
+        }
+        // In each straddling view, blocks of texels first (their points
+        // lie within the hull of the block's corner texels' projections):
+        // a block wholly on the silhouette or the background there
+        // settles its texels in that view; the others test texel by
+        // texel. Per texel the same verdicts as testing it in every
+        // straddling view (`Silhouettes::inside_views`): any background
+        // empties it, else it needs `min_seen` views.
+        let nc = cuts.len();
+        sc.seen.clear();
+        sc.seen.resize(p * p, seen as u32);
+        sc.corner.resize(nc * nc, None);
+        for &vi in &sc.edge_views {
+            let (pr, t) = (&sil.projs[vi], &sil.tables[vi]);
+            for (cb, &cy) in cuts.iter().enumerate() {
+                for (ca, &cx) in cuts.iter().enumerate() {
+                    sc.corner[cb * nc + ca] = project(pr, point(cx, cy));
+                }
+            }
+            for b in 0..nc - 1 {
+                let ys = cuts[b]..if b + 2 == nc { p } else { cuts[b + 1] };
+                for a in 0..nc - 1 {
+                    let xs = cuts[a]..if a + 2 == nc { p } else { cuts[a + 1] };
+                    let alive = ys
+                        .clone()
+                        .any(|ty| cell[ty * p + xs.start..ty * p + xs.end].contains(&true));
+                    if !alive {
+                        continue;
+                    }
+                    let c = [
+                        sc.corner[b * nc + a],
+                        sc.corner[b * nc + a + 1],
+                        sc.corner[(b + 1) * nc + a],
+                        sc.corner[(b + 1) * nc + a + 1],
+                    ];
+                    let verdict = judge_block(pr, t, c, sil.window());
+                    match verdict {
+                        QuadVerdict::Edge => blocks.1 += 1,
+                        _ => blocks.0 += 1,
+                    }
+                    for ty in ys.clone() {
+                        for tx in xs.clone() {
+                            let i = ty * p + tx;
+                            if !cell[i] {
+                                continue;
+                            }
+                            let v = match verdict {
+                                QuadVerdict::Background => PointInView::Background,
+                                QuadVerdict::Inside => PointInView::Counts,
+                                QuadVerdict::Edge => {
+                                    point_in_view(pr, t, point(tx, ty), sil.window())
                                 }
-                                let v = match verdict {
-                                    QuadVerdict::Background => PointInView::Background,
-                                    QuadVerdict::Inside => PointInView::Counts,
-                                    QuadVerdict::Edge => {
-                                        point_in_view(pr, t, point(tx, ty), sil.window())
-                                    }
-                                };
-                                match v {
-                                    PointInView::Background => cell[i] = false,
-                                    PointInView::Counts => sc.seen[i] += 1,
-                                    PointInView::Silent => {}
-                                }
+                            };
+                            match v {
+                                PointInView::Background => cell[i] = false,
+                                PointInView::Counts => sc.seen[i] += 1,
+                                PointInView::Silent => {}
                             }
                         }
                     }
                 }
             }
-            for (o, &n) in cell.iter_mut().zip(&sc.seen) {
-                *o = *o && n as usize >= min_seen;
-            }
-            blocks
-        })
+        }
+        for (o, &n) in cell.iter_mut().zip(&sc.seen) {
+            *o = *o && n as usize >= min_seen;
+        }
+        blocks
+    };
+    // Consecutive quads (neighbours in the extraction's scan order) are
+    // judged together first, in each view, by their bounding sphere: a
+    // footprint wholly on the silhouette, or wholly background, in frame,
+    // is each quad's verdict there too (most quads lie inside most views'
+    // silhouettes), so only the other views judge quad by quad.
+    opacity
+        .par_chunks_mut(p * p * QUAD_GROUP)
+        .zip(quads.par_chunks(QUAD_GROUP))
+        .map_init(
+            || (CarveScratch::default(), Vec::new()),
+            |(sc, group), (cells, qs)| {
+                group.clear();
+                if let Some(corners) = bounding_box(qs) {
+                    let reach = sil.window().reach();
+                    group.extend(
+                        sil.projs
+                            .iter()
+                            .zip(&sil.tables)
+                            .map(|(pr, t)| judge_box(pr, t, &corners, reach)),
+                    );
+                }
+                cells
+                    .chunks_mut(p * p)
+                    .zip(qs)
+                    .map(|(cell, q)| carve_one(sc, group, cell, q))
+                    .fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+            },
+        )
         .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+}
+
+/// Quads [`carve_texels`] judges together first.
+const QUAD_GROUP: usize = 8;
+
+/// The eight corners of the box around every corner of `quads` (`None`
+/// if a corner is not finite).
+fn bounding_box(quads: &[Quad]) -> Option<[Vec3; 8]> {
+    let (lo, hi) = quads
+        .iter()
+        .flat_map(|q| q.corners())
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), c| {
+            (lo.min(c), hi.max(c))
+        });
+    (lo.is_finite() && hi.is_finite()).then(|| {
+        std::array::from_fn(|k| {
+            Vec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            )
+        })
+    })
+}
+
+/// What one view says of every quad within a box (its eight `corners`;
+/// the quads' points project into the hull of the corners' projections):
+/// [`Verdict::Inside`] when it is each such quad's [`judge_quad`] verdict
+/// [`QuadVerdict::Inside`] (the pixels under the box all foreground, in
+/// frame), [`Verdict::Background`] when it is each one's
+/// [`QuadVerdict::Background`] (every pixel within `reach` of them
+/// background, in frame), else [`Verdict::Object`] (judge quad by quad).
+/// The box is grown by a pixel beyond what exact arithmetic needs, so
+/// the quads' own rounding cannot carry them out.
+fn judge_box(p: &Proj, t: &SummedArea, corners: &[Vec3; 8], reach: u32) -> Verdict {
+    let (mut x0, mut y0, mut x1, mut y1) = (f32::MAX, f32::MAX, f32::MIN, f32::MIN);
+    for &c in corners {
+        let Some((px, py)) = project(p, c) else {
+            return Verdict::Object;
+        };
+        x0 = x0.min(px);
+        x1 = x1.max(px);
+        y0 = y0.min(py);
+        y1 = y1.max(py);
+    }
+    if !(x0 >= 1.0 && y0 >= 1.0 && x1 + 1.0 < p.width && y1 + 1.0 < p.height) {
+        return Verdict::Object;
+    }
+    let (xa, ya) = (floor(x0) as u32 - 1, floor(y0) as u32 - 1);
+    let (xb, yb) = (
+        (floor(x1) as u32 + 2).min(t.width),
+        (floor(y1) as u32 + 2).min(t.height),
+    );
+    if t.count(xa, ya, xb, yb) == (xb - xa) * (yb - ya) {
+        return Verdict::Inside;
+    }
+    let (ma, mb) = (
+        (xa.saturating_sub(reach), ya.saturating_sub(reach)),
+        (
+            xb.saturating_add(reach).min(t.width),
+            yb.saturating_add(reach).min(t.height),
+        ),
+    );
+    if t.count_not_background(ma.0, ma.1, mb.0, mb.1) == 0 {
+        Verdict::Background
+    } else {
+        Verdict::Object
+    }
 }
 
 /// Working memory of [`carve_texels`], one per rayon job.
@@ -1266,6 +1364,41 @@ pub(super) mod tests {
                 }
             }
         }
+    }
+
+    /// A small box at the sphere's centre is inside every view's
+    /// silhouette, one off to the side in the image's corner region is
+    /// background, one across the contour or behind the camera is
+    /// neither.
+    #[test]
+    fn a_box_is_judged_by_its_corners_projections() {
+        let views = sphere_views(&[]);
+        let sil = silhouettes(&views, false);
+        let cube = |c: Vec3, h: f32| -> [Vec3; 8] {
+            std::array::from_fn(|k| {
+                c + h * Vec3::new(
+                    if k & 1 == 0 { -1.0 } else { 1.0 },
+                    if k & 2 == 0 { -1.0 } else { 1.0 },
+                    if k & 4 == 0 { -1.0 } else { 1.0 },
+                )
+            })
+        };
+        let (pr, t) = (&sil.projs[1], &sil.tables[1]);
+        let cam = &views[1].0;
+        let centre = cube(Vec3::ZERO, 0.05);
+        assert!(matches!(judge_box(pr, t, &centre, 1), Verdict::Inside));
+        // Beside the sphere, in frame: a point a little off its contour.
+        let (o, d) = cam.ray(6.0, 6.0);
+        let side = cube(o + 3.0 * d, 0.02);
+        assert!(matches!(judge_box(pr, t, &side, 1), Verdict::Background));
+        // A reach wide enough to touch the sphere: no longer background.
+        assert!(matches!(judge_box(pr, t, &side, 30), Verdict::Object));
+        // Across the contour: the sphere's radius, sideways to the view.
+        let perp = o.normalize().any_orthonormal_vector();
+        let across = cube(0.5 * perp, 0.05);
+        assert!(matches!(judge_box(pr, t, &across, 1), Verdict::Object));
+        let behind = cube(o - d, 0.1);
+        assert!(matches!(judge_box(pr, t, &behind, 1), Verdict::Object));
     }
 
     #[test]
