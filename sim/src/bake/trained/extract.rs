@@ -549,7 +549,16 @@ pub(super) fn voxel_quads(
         })
     };
     let mut out = Vec::new();
+    let mut columns = Vec::with_capacity(n * n);
     for (axis, cnt) in count.iter().enumerate() {
+        if cnt.iter().all(|&c| c < need) {
+            continue;
+        }
+        // Each lattice line's pattern, once per axis: every texel reads
+        // four of them.
+        columns.clear();
+        columns.extend((0..n * n).map(|l| column(axis, l % n, l / n)));
+        let column = |i1: usize, i2: usize| columns[i2 * n + i1];
         for (side, &c) in cnt.iter().enumerate() {
             if c < need {
                 continue;
@@ -606,11 +615,11 @@ pub(super) fn voxel_quads(
                 let x = texel_point(&flat, p, t as u32 % p, t as u32 / p);
                 let cell = |c: f32| (floor(c / step).max(0.0) as usize).min(m - 1);
                 let (j1, j2) = (cell(x[a1] - lo[a1]), cell(x[a2] - lo[a2]));
-                let c0 = column(axis, j1, j2);
+                let c0 = column(j1, j2);
                 let around = [(1, 0), (0, 1), (1, 1)];
                 let same = around
                     .iter()
-                    .all(|&(d1, d2)| column(axis, j1 + d1, j2 + d2) == c0);
+                    .all(|&(d1, d2)| column(j1 + d1, j2 + d2) == c0);
                 let sample = |d: f32| {
                     let mut q = x;
                     q[axis] = lo[axis] + d;
