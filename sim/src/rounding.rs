@@ -1,14 +1,17 @@
-//! `f32` floor, ceil and round with the same bits as `std`'s on every
-//! input, inlined.
+//! `f32` floor and ceil with the same bits as `std`'s on every input,
+//! inlined.
 //!
 //! Baseline x86-64 has no rounding instruction (SSE4.1's `roundss`), so
-//! `f32::floor` and friends compile to calls into libm; in the bake's hot
-//! loops (the hull's point test, the texel lines, the feature lattice's
-//! taps, the 8-bit quantisation) the calls and the register spills around
-//! them were about 2.5 % of a lego (128, 17) bake's CPU time. These go
-//! through a truncating conversion instead (`cvttss2si`), exact below
-//! 2²³ where every `f32` with a fraction lives; the sign is copied from
-//! the input so that zeros keep theirs as `std`'s do.
+//! `f32::floor` and `f32::ceil` compile to calls into libm; in the bake's
+//! hot loops (the hull's point test, the texel lines, the feature
+//! lattice's taps) the calls and the register spills around them were
+//! about 2 % of a lego (128, 17) bake's CPU time. These go through a
+//! truncating conversion instead (`cvttss2si`), exact below 2²³ where
+//! every `f32` with a fraction lives; the sign is copied from the input
+//! so that zeros keep theirs as `std`'s do. (`f32::round` stays `std`'s:
+//! its callers are inlined into the `avx2` fine-tune and judgement, where
+//! LLVM already rounds in registers and vectorises; this module's
+//! version, per lane, made the fine-tune 5 % slower.)
 
 /// 2²³: every `f32` at or above it in magnitude is an integer.
 const INTEGRAL: f32 = 8_388_608.0;
@@ -41,23 +44,6 @@ pub fn ceil(x: f32) -> f32 {
     c.copysign(x)
 }
 
-/// `x.round()` (halves away from zero), the same bits.
-#[inline(always)]
-pub fn round(x: f32) -> f32 {
-    if !(x.abs() < INTEGRAL) {
-        return x;
-    }
-    let t = trunc_small(x);
-    // Exact: below 2²³ the fraction of x is representable.
-    let frac = (x - t).abs();
-    let r = if frac >= 0.5 {
-        t + 1.0f32.copysign(x)
-    } else {
-        t
-    };
-    r.copysign(x)
-}
-
 /// [`floor`] of each component.
 #[inline(always)]
 pub fn floor3(v: glam::Vec3) -> glam::Vec3 {
@@ -73,7 +59,7 @@ mod tests {
         let x = f32::from_bits(bits);
         if x.is_nan() {
             // std's payload may differ (libm may quiet it); NaN stays NaN.
-            assert!(floor(x).is_nan() && ceil(x).is_nan() && round(x).is_nan());
+            assert!(floor(x).is_nan() && ceil(x).is_nan());
             return;
         }
         assert_eq!(
@@ -85,11 +71,6 @@ mod tests {
             ceil(x).to_bits(),
             x.ceil().to_bits(),
             "ceil {x:e} ({bits:#x})"
-        );
-        assert_eq!(
-            round(x).to_bits(),
-            x.round().to_bits(),
-            "round {x:e} ({bits:#x})"
         );
     }
 
@@ -131,7 +112,7 @@ mod tests {
     }
 
     /// Every `f32` whose magnitude lies in [1/4, 4) (2²⁴ of them each
-    /// side, walked at a stride): the fractions that decide the roundings.
+    /// side, walked at a stride): the fractions that decide them.
     #[test]
     fn small_magnitudes_match_std() {
         let lo = 0.25f32.to_bits();

@@ -7,7 +7,6 @@
 //! fine-tune optimises is what `nerflex render --float` shows, and the
 //! fixed-point renderer is within a level of it.
 
-use crate::rounding::round;
 use nerflex_core::shader::{MlpWeights, HIDDEN, INPUTS, OUTPUTS};
 
 /// Feature channels per texel (feat0 RGBA, feat1 RGBA).
@@ -26,9 +25,9 @@ pub fn is_alpha(c: usize) -> bool {
 #[inline(always)]
 pub fn encode(c: usize, v: f32, occupied: bool) -> u8 {
     let t = if is_alpha(c) {
-        round((v + 1.0) * 0.5 * 255.0)
+        ((v + 1.0) * 0.5 * 255.0).round()
     } else {
-        round(v * 255.0)
+        (v * 255.0).round()
     };
     let lo = if c == 0 && occupied { 1.0 } else { 0.0 };
     t.clamp(lo, 255.0) as u8
@@ -125,7 +124,7 @@ pub fn forward(w: &MlpWeights, x: &[f32; INPUTS]) -> Activations {
 /// The 8-bit colour the `f32` shader shows for output `y`.
 #[inline]
 pub fn to_u8(y: [f32; OUTPUTS]) -> [u8; 3] {
-    y.map(|v| round(v.clamp(0.0, 1.0) * 255.0) as u8)
+    y.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
 }
 
 /// Backward pass for output gradient `dy` (∂loss/∂y): adds the weight

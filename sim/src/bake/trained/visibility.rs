@@ -20,7 +20,6 @@
 //! error become opaque. Soft compositing can add coverage as well as take
 //! it away; a remove-only rule cannot mend an edge the field cut short.
 
-use crate::rounding::round;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
 
@@ -578,7 +577,7 @@ fn errors8(
                 let c = if sh[l].n == 0 {
                     1.0
                 } else {
-                    let v = round(y[k][l].clamp(0.0, 1.0) * 255.0);
+                    let v = (y[k][l].clamp(0.0, 1.0) * 255.0).round();
                     v / 255.0 * cov + (1.0 - cov)
                 };
                 (c - px[l].target[k]).powi(2)
