@@ -25,23 +25,25 @@ fn trunc_small(x: f32) -> f32 {
 /// `x.floor()`, the same bits.
 #[inline(always)]
 pub fn floor(x: f32) -> f32 {
-    if !(x.abs() < INTEGRAL) {
-        return x; // integral, infinite or NaN: std returns it as it is
+    if x.abs() < INTEGRAL {
+        let t = trunc_small(x);
+        let f = if t > x { t - 1.0 } else { t };
+        f.copysign(x)
+    } else {
+        x // integral, infinite or NaN: std returns it as it is
     }
-    let t = trunc_small(x);
-    let f = if t > x { t - 1.0 } else { t };
-    f.copysign(x)
 }
 
 /// `x.ceil()`, the same bits.
 #[inline(always)]
 pub fn ceil(x: f32) -> f32 {
-    if !(x.abs() < INTEGRAL) {
-        return x;
+    if x.abs() < INTEGRAL {
+        let t = trunc_small(x);
+        let c = if t < x { t + 1.0 } else { t };
+        c.copysign(x)
+    } else {
+        x
     }
-    let t = trunc_small(x);
-    let c = if t < x { t + 1.0 } else { t };
-    c.copysign(x)
 }
 
 /// [`floor`] of each component.
