@@ -148,6 +148,16 @@ impl SummedArea {
         }
     }
 
+    /// Whether every pixel of [x0, x1) × [y0, y1) grown by `reach` on
+    /// every side (clipped to the image) is background.
+    #[inline]
+    fn background_around(&self, x0: u32, y0: u32, x1: u32, y1: u32, reach: u32) -> bool {
+        let (xa, ya) = (x0.saturating_sub(reach), y0.saturating_sub(reach));
+        let xb = x1.saturating_add(reach).min(self.width);
+        let yb = y1.saturating_add(reach).min(self.height);
+        self.count_not_background(xa, ya, xb, yb) == 0
+    }
+
     #[inline]
     fn rect(sums: &[u32], width: u32, x0: u32, y0: u32, x1: u32, y1: u32) -> u32 {
         let s = width as usize + 1;
@@ -673,43 +683,70 @@ fn bounding_box(quads: &[Quad]) -> Option<[Vec3; 8]> {
 /// [`QuadVerdict::Inside`] (the pixels under the box all foreground, in
 /// frame), [`Verdict::Background`] when it is each one's
 /// [`QuadVerdict::Background`] (every pixel within `reach` of them
-/// background, in frame), else [`Verdict::Object`] (judge quad by quad).
-/// The box is grown by a pixel beyond what exact arithmetic needs, so
-/// the quads' own rounding cannot carry them out.
+/// background, in frame), else [`Verdict::Object`] (judge quad by quad);
+/// see [`judge_projected`].
 fn judge_box(p: &Proj, t: &SummedArea, corners: &[Vec3; 8], reach: u32) -> Verdict {
+    // `judge_quad`'s Inside needs foreground, not another object's pixels.
+    match judge_projected(p, t, corners.iter().map(|&c| project(p, c)), reach, false) {
+        Footprint::Inside => Verdict::Inside,
+        Footprint::Background => Verdict::Background,
+        Footprint::Mixed => Verdict::Object,
+    }
+}
+
+/// What every point projecting into the hull of `points` (pixels; `None`:
+/// too near the camera) shows in a view: [`Footprint::Inside`] when every
+/// point is in frame and its pixel on the silhouette (foreground, or with
+/// `others` another object's pixel too), [`Footprint::Background`] when
+/// every point is in frame and every pixel within `reach` of it is
+/// background. The box is grown by a pixel beyond what exact arithmetic
+/// needs, so a point's own rounding cannot carry it out.
+fn judge_projected(
+    p: &Proj,
+    t: &SummedArea,
+    points: impl IntoIterator<Item = Option<(f32, f32)>>,
+    reach: u32,
+    others: bool,
+) -> Footprint {
     let (mut x0, mut y0, mut x1, mut y1) = (f32::MAX, f32::MAX, f32::MIN, f32::MIN);
-    for &c in corners {
-        let Some((px, py)) = project(p, c) else {
-            return Verdict::Object;
+    for c in points {
+        let Some((px, py)) = c else {
+            return Footprint::Mixed;
         };
         x0 = x0.min(px);
         x1 = x1.max(px);
         y0 = y0.min(py);
         y1 = y1.max(py);
     }
+    // Every point in frame, a pixel to spare.
     if !(x0 >= 1.0 && y0 >= 1.0 && x1 + 1.0 < p.width && y1 + 1.0 < p.height) {
-        return Verdict::Object;
+        return Footprint::Mixed;
     }
+    // The pixels holding the points: [xa, xb) × [ya, yb).
     let (xa, ya) = (floor(x0) as u32 - 1, floor(y0) as u32 - 1);
     let (xb, yb) = (
         (floor(x1) as u32 + 2).min(t.width),
         (floor(y1) as u32 + 2).min(t.height),
     );
-    if t.count(xa, ya, xb, yb) == (xb - xa) * (yb - ya) {
-        return Verdict::Inside;
+    let on = match others {
+        true => t.count_not_background(xa, ya, xb, yb),
+        false => t.count(xa, ya, xb, yb),
+    };
+    if on == (xb - xa) * (yb - ya) {
+        return Footprint::Inside;
     }
-    let (ma, mb) = (
-        (xa.saturating_sub(reach), ya.saturating_sub(reach)),
-        (
-            xb.saturating_add(reach).min(t.width),
-            yb.saturating_add(reach).min(t.height),
-        ),
-    );
-    if t.count_not_background(ma.0, ma.1, mb.0, mb.1) == 0 {
-        Verdict::Background
+    if t.background_around(xa, ya, xb, yb, reach) {
+        Footprint::Background
     } else {
-        Verdict::Object
+        Footprint::Mixed
     }
+}
+
+/// [`judge_projected`]'s answer.
+enum Footprint {
+    Inside,
+    Background,
+    Mixed,
 }
 
 /// Working memory of [`carve_texels`], one per rayon job.
@@ -752,50 +789,19 @@ fn project(p: &Proj, x: Vec3) -> Option<(f32, f32)> {
 /// points project into their hull): [`QuadVerdict::Inside`] when every
 /// point's pixel is in frame and not background, so each point's window
 /// counts; [`QuadVerdict::Background`] when every point is in frame and
-/// its whole window background. The box is grown by a pixel on every
-/// side beyond what exact arithmetic needs, so a point's own rounding
-/// cannot carry it out: these verdicts are [`point_in_view`]'s.
+/// its whole window background: [`point_in_view`]'s verdicts (see
+/// [`judge_projected`]).
 fn judge_block(
     p: &Proj,
     t: &SummedArea,
     corners: [Option<(f32, f32)>; 4],
     window: Window,
 ) -> QuadVerdict {
-    let (mut x0, mut y0, mut x1, mut y1) = (f32::MAX, f32::MAX, f32::MIN, f32::MIN);
-    for c in corners {
-        let Some((px, py)) = c else {
-            return QuadVerdict::Edge;
-        };
-        x0 = x0.min(px);
-        x1 = x1.max(px);
-        y0 = y0.min(py);
-        y1 = y1.max(py);
-    }
-    // Every point in frame, a pixel to spare.
-    if !(x0 >= 1.0 && y0 >= 1.0 && x1 + 1.0 < p.width && y1 + 1.0 < p.height) {
-        return QuadVerdict::Edge;
-    }
-    // The pixels holding the points: [xa, xb) × [ya, yb).
-    let (xa, ya) = (floor(x0) as u32 - 1, floor(y0) as u32 - 1);
-    let (xb, yb) = (
-        (floor(x1) as u32 + 2).min(t.width),
-        (floor(y1) as u32 + 2).min(t.height),
-    );
-    if t.count_not_background(xa, ya, xb, yb) == (xb - xa) * (yb - ya) {
-        return QuadVerdict::Inside;
-    }
-    let m = window.reach();
-    let (ma, mb) = (
-        (xa.saturating_sub(m), ya.saturating_sub(m)),
-        (
-            xb.saturating_add(m).min(t.width),
-            yb.saturating_add(m).min(t.height),
-        ),
-    );
-    if t.count_not_background(ma.0, ma.1, mb.0, mb.1) == 0 {
-        QuadVerdict::Background
-    } else {
-        QuadVerdict::Edge
+    // A point on another object's pixel counts too (`point_in_view`).
+    match judge_projected(p, t, corners, window.reach(), true) {
+        Footprint::Inside => QuadVerdict::Inside,
+        Footprint::Background => QuadVerdict::Background,
+        Footprint::Mixed => QuadVerdict::Edge,
     }
 }
 
@@ -835,14 +841,7 @@ fn judge_quad(p: &Proj, t: &SummedArea, q: &Quad, window: Window) -> QuadVerdict
         (floor(y1) as u32 + 1).min(t.height),
     );
     let count = t.count(xa, ya, xb, yb);
-    let (ma, mb) = (
-        (xa.saturating_sub(margin), ya.saturating_sub(margin)),
-        (
-            xb.saturating_add(margin).min(t.width),
-            yb.saturating_add(margin).min(t.height),
-        ),
-    );
-    if t.count_not_background(ma.0, ma.1, mb.0, mb.1) == 0 {
+    if t.background_around(xa, ya, xb, yb, margin) {
         QuadVerdict::Background
     } else if count == (xb - xa) * (yb - ya) {
         QuadVerdict::Inside

@@ -74,6 +74,45 @@ enum Parent {
     Open(u32),
 }
 
+/// Judges a cell (bounding sphere `centre`, `radius`; footprint grown by
+/// `margin` pixels) in the views `candidates`, `seen` views having it on
+/// the silhouette already: [`Cell::Out`] when one view shows background
+/// there, [`Cell::In`] when every view has it on the silhouette, else
+/// [`Cell::Test`] with the views left to the point test appended to
+/// `slab` (its opens and views).
+fn judge_cell(
+    sil: &Silhouettes,
+    centre: Vec3,
+    radius: f32,
+    margin: f32,
+    candidates: &[usize],
+    mut seen: u32,
+    slab: &mut Slab,
+) -> Cell {
+    let start = slab.2.len();
+    for &vi in candidates {
+        let (p, t) = (&sil.projs[vi], &sil.tables[vi]);
+        match judge_grown(p, t, centre, radius, margin) {
+            Verdict::Background => {
+                slab.2.truncate(start);
+                return Cell::Out;
+            }
+            // Wholly in frame on the silhouette: every point's window is too.
+            Verdict::Inside => seen += 1,
+            Verdict::Object | Verdict::Unseen => slab.2.push(vi),
+        }
+    }
+    if slab.2.len() == start && !sil.is_empty() {
+        return Cell::In;
+    }
+    slab.1.push(Open {
+        start,
+        end: slab.2.len(),
+        seen,
+    });
+    Cell::Test(slab.1.len() as u32 - 1)
+}
+
 impl<'s> HullLookup<'s> {
     /// The lookup over `cube` at `g`³ voxels (clamped to 1…[`MAX_GRID`]);
     /// points outside the cube take the per-point test.
@@ -152,7 +191,7 @@ impl<'s> HullLookup<'s> {
                 for ij in 0..gu * gu {
                     let (i, j) = (ij % gu, ij / gu);
                     let (verdict, candidates) = parent([i, j, k]);
-                    let mut seen = match verdict {
+                    let seen = match verdict {
                         Parent::Out => {
                             slab.0.push(Cell::Out);
                             continue;
@@ -165,34 +204,7 @@ impl<'s> HullLookup<'s> {
                         Parent::All => 0,
                     };
                     let centre = origin + voxel * (Vec3::new(i as f32, j as f32, k as f32) + 0.5);
-                    let start = slab.2.len();
-                    let mut out = false;
-                    for &vi in candidates {
-                        let (p, t) = (&sil.projs[vi], &sil.tables[vi]);
-                        match judge_grown(p, t, centre, radius, margin) {
-                            Verdict::Background => {
-                                out = true;
-                                break;
-                            }
-                            // Wholly in frame on the silhouette: every
-                            // point's window is too.
-                            Verdict::Inside => seen += 1,
-                            Verdict::Object | Verdict::Unseen => slab.2.push(vi),
-                        }
-                    }
-                    let cell = if out {
-                        slab.2.truncate(start);
-                        Cell::Out
-                    } else if slab.2.len() == start && !sil.is_empty() {
-                        Cell::In
-                    } else {
-                        slab.1.push(Open {
-                            start,
-                            end: slab.2.len(),
-                            seen,
-                        });
-                        Cell::Test(slab.1.len() as u32 - 1)
-                    };
+                    let cell = judge_cell(sil, centre, radius, margin, candidates, seen, &mut slab);
                     slab.0.push(cell);
                 }
                 slab
@@ -292,33 +304,8 @@ impl<'s> HullLookup<'s> {
                 for h in 0..8 {
                     let off = Vec3::new((h & 1) as f32, ((h >> 1) & 1) as f32, (h >> 2) as f32);
                     let centre = origin + voxel * (ijk + 0.25 + 0.5 * off);
-                    let start = out.2.len();
-                    let mut seen = o.seen;
-                    let mut background = false;
-                    for &vi in &this.views[o.start..o.end] {
-                        let (p, t) = (&sil.projs[vi], &sil.tables[vi]);
-                        match judge_grown(p, t, centre, radius, margin) {
-                            Verdict::Background => {
-                                background = true;
-                                break;
-                            }
-                            Verdict::Inside => seen += 1,
-                            Verdict::Object | Verdict::Unseen => out.2.push(vi),
-                        }
-                    }
-                    let cell = if background {
-                        out.2.truncate(start);
-                        Cell::Out
-                    } else if out.2.len() == start {
-                        Cell::In
-                    } else {
-                        out.1.push(Open {
-                            start,
-                            end: out.2.len(),
-                            seen,
-                        });
-                        Cell::Test(out.1.len() as u32 - 1)
-                    };
+                    let views = &this.views[o.start..o.end];
+                    let cell = judge_cell(sil, centre, radius, margin, views, o.seen, &mut out);
                     out.0.push(cell);
                 }
                 out
