@@ -708,11 +708,13 @@ pub fn bake(
     let (g, p) = (params.grid, params.patch);
     let p2 = (p * p) as usize;
     let t0 = Instant::now();
+    // The field's copy for point queries (lego: a 228 MB lattice) serves
+    // the geometry's steps and goes before the fine-tune's peak.
     let copy = field.for_point_queries();
-    let field = copy.as_deref().unwrap_or(field);
+    let points = copy.as_deref().unwrap_or(field);
     let threshold =
-        threshold::surface_sigma(field, views, params.surface_alpha, params.surface_miss);
-    let surface = extract::Surface::with_sigma(field, threshold.sigma);
+        threshold::surface_sigma(points, views, params.surface_alpha, params.surface_miss);
+    let surface = extract::Surface::with_sigma(points, threshold.sigma);
     let sil = (params.hull_carve || params.hull_surface)
         .then(|| super::carve::Silhouettes::new(views).with_radius(params.hull_radius));
     let lookup = hull_lookup(&surface, sil.as_ref(), params);
@@ -797,7 +799,7 @@ pub fn bake(
     let mut gb = gb;
     let mut depth_carve = depthcarve::DepthCarveReport::default();
     for _ in 0..params.depth_carve_rounds {
-        let r = depthcarve::carve(field, &mut geo, p, &gb, views, params.depth_carve_margin);
+        let r = depthcarve::carve(points, &mut geo, p, &gb, views, params.depth_carve_margin);
         depth_carve.pixels_against += r.pixels_against;
         depth_carve.texels_carved += r.texels_carved;
         if r.texels_carved == 0 {
@@ -808,12 +810,13 @@ pub fn bake(
     }
     // Onto the depth the field's renders show, then look once more.
     let (gb, depth_report) = if params.depth_correct {
-        let r = depth::correct(field, &mut geo.quads, p, geo.voxel, &gb, views);
+        let r = depth::correct(points, &mut geo.quads, p, geo.voxel, &gb, views);
         drop(gb);
         (gbuffer::of_geometry(&geo, p, views, supersample)?, r)
     } else {
         (gb, depth::DepthReport::default())
     };
+    drop(copy);
 
     // Rounds of: keep the shown quads, build the training pixels, fit and
     // fine-tune; then (but the last) judge each shown texel against what
