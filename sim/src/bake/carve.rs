@@ -773,15 +773,17 @@ fn block_cuts(p: usize) -> Vec<usize> {
 }
 
 /// Where `x` projects in a view (pixels), if at least 10⁻³ in front of
-/// the camera: the same operations as [`point_in_view`]'s.
+/// the camera and finite: the same operations as [`point_in_view`]'s.
+/// (A NaN corner must not drop out of a box's `min`/`max`.)
 #[inline]
 fn project(p: &Proj, x: Vec3) -> Option<(f32, f32)> {
     let c = p.w2c.transform_point3(x);
     let depth = -c.z;
-    if depth <= 1e-3 {
+    if depth.is_nan() || depth <= 1e-3 {
         return None;
     }
-    Some((p.cx + p.fx * c.x / depth, p.cy - p.fy * c.y / depth))
+    let (px, py) = (p.cx + p.fx * c.x / depth, p.cy - p.fy * c.y / depth);
+    (px.is_finite() && py.is_finite()).then_some((px, py))
 }
 
 /// What one view says about every point of a block of texels, from its
@@ -1398,6 +1400,10 @@ pub(super) mod tests {
         assert!(matches!(judge_box(pr, t, &across, 1), Verdict::Object));
         let behind = cube(o - d, 0.1);
         assert!(matches!(judge_box(pr, t, &behind, 1), Verdict::Object));
+        // A NaN corner does not drop out of the box: no verdict.
+        let mut broken = centre;
+        broken[7] = Vec3::NAN;
+        assert!(matches!(judge_box(pr, t, &broken, 1), Verdict::Object));
     }
 
     #[test]

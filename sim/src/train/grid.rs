@@ -461,7 +461,8 @@ impl RadianceField for SparseGrid {
     }
 
     fn for_point_queries(&self) -> Option<Box<dyn RadianceField + '_>> {
-        Some(Box::new(DensityCopy::new(self)))
+        // Without room for the copy, the grid answers the queries itself.
+        DensityCopy::try_new(self).map(|c| Box::new(c) as Box<dyn RadianceField + '_>)
     }
 
     fn color(&self, p: Vec3, dir: Vec3) -> Vec3 {
@@ -498,11 +499,15 @@ pub struct DensityCopy<'a> {
 }
 
 impl<'a> DensityCopy<'a> {
-    /// Copies `grid`'s raw densities onto its whole vertex lattice.
-    pub fn new(grid: &'a SparseGrid) -> Self {
+    /// Copies `grid`'s raw densities onto its whole vertex lattice; `None`
+    /// when that lattice cannot be allocated (a huge resolution).
+    pub fn try_new(grid: &'a SparseGrid) -> Option<Self> {
         let n = grid.res as usize + 1;
         let len = grid.record_len();
-        let mut raw = vec![0.0f32; n * n * n];
+        let cells = n.checked_mul(n)?.checked_mul(n)?;
+        let mut raw = Vec::new();
+        raw.try_reserve_exact(cells).ok()?;
+        raw.resize(cells, 0.0f32);
         // Slots are numbered cell by cell in z-major order, so these
         // writes walk the lattice nearly in order.
         for (s, &v) in grid.vertex.iter().enumerate() {
@@ -510,7 +515,7 @@ impl<'a> DensityCopy<'a> {
                 *r = d;
             }
         }
-        Self { grid, raw }
+        Some(Self { grid, raw })
     }
 
     /// [`SparseGrid::raw_density`] read from the lattice copy: the same
