@@ -13,7 +13,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{judge_grown, Silhouettes, Verdict, MAX_GRID};
+use super::{judge_sphere, Silhouettes, Verdict, MAX_GRID};
 use crate::bake::Aabb;
 
 /// What a lookup voxel says about its points.
@@ -92,7 +92,7 @@ fn judge_cell(
     let start = slab.2.len();
     for &vi in candidates {
         let (p, t) = (&sil.projs[vi], &sil.tables[vi]);
-        match judge_grown(p, t, centre, radius, margin) {
+        match judge_sphere(p, t, centre, radius, margin) {
             Verdict::Background => {
                 slab.2.truncate(start);
                 return Cell::Out;
