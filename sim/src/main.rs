@@ -3,6 +3,11 @@
 use clap::{Parser, Subcommand};
 use nerflex_sim::cli;
 
+/// The system allocator with large blocks on transparent huge pages
+/// (`nerflex_sim::memory::HugePageAlloc`).
+#[global_allocator]
+static ALLOC: nerflex_sim::memory::HugePageAlloc = nerflex_sim::memory::HugePageAlloc;
+
 #[derive(Debug, Parser)]
 #[command(
     name = "nerflex",

@@ -674,8 +674,22 @@ pub fn coverage(asset: &Asset, camera: &Camera) -> Result<CoverageStats, RasterE
 /// Per `t`-pixel tile of `view` (row-major), the indices of the projected
 /// quads whose box touches it, and the tiles per row.
 pub(crate) fn tile_bins(projected: &[ScreenQuad], view: &View, t: u32) -> (Vec<Vec<u32>>, u32) {
+    let mut bins = Vec::new();
+    let tx = tile_bins_into(projected, view, t, &mut bins);
+    (bins, tx)
+}
+
+/// [`tile_bins`] into `bins`, whose vectors keep their memory (a worker
+/// binning view after view allocates once).
+pub(crate) fn tile_bins_into(
+    projected: &[ScreenQuad],
+    view: &View,
+    t: u32,
+    bins: &mut Vec<Vec<u32>>,
+) -> u32 {
     let (tx, ty) = (view.width().div_ceil(t), view.height().div_ceil(t));
-    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tx * ty) as usize];
+    bins.iter_mut().for_each(Vec::clear);
+    bins.resize_with((tx * ty) as usize, Vec::new);
     for (i, sq) in projected.iter().enumerate() {
         let [x0, y0, x1, y1] = sq.bbox;
         for by in y0 / t..=y1 / t {
@@ -684,5 +698,5 @@ pub(crate) fn tile_bins(projected: &[ScreenQuad], view: &View, t: u32) -> (Vec<V
             }
         }
     }
-    (bins, tx)
+    tx
 }

@@ -91,11 +91,12 @@ pub fn find(
         .par_iter()
         .enumerate()
         .step_by(stride)
-        .map(|(vi, v)| {
+        .map_init(gbuffer::Binned::default, |binned, (vi, v)| {
             let (_, view, ss) = gbuffer::views_of(vi, v, true)?;
             let inside = interior(v);
             let w = v.image.width() as usize;
-            let binned = gbuffer::bin(&quads, &view);
+            binned.rebin(&quads, &view);
+            let binned = &*binned;
             let t = TILE as u32;
             let mut front = Box::new(TileRenderer::<TILE, TILE>::new());
             let mut near = Box::new(TileRenderer::<TILE, TILE>::new());

@@ -103,14 +103,16 @@ fn rasterize_bits(
     let per: Vec<Result<ViewPixels, BakeError>> = views
         .par_iter()
         .enumerate()
-        .map(|(vi, v)| {
+        .map_init(Binned::default, |binned, (vi, v)| {
             let (out_view, view, ss) = views_of(vi, v, supersample)?;
+            binned.rebin(quads, &view);
             let Binned {
                 projected,
+                nearness,
                 bins,
                 tx,
-            } = bin(quads, &view);
-            let nearness = nearness(&projected);
+            } = &*binned;
+            let tx = *tx;
             let mut keyed = Vec::new();
             let t = TILE as u32;
             let mut tile = Box::new(TileRenderer::<TILE, TILE>::new());
@@ -123,7 +125,7 @@ fn rasterize_bits(
                 }
                 let (bx, by) = (b as u32 % tx, b as u32 / tx);
                 tile.begin(&view, bx * t, by * t);
-                draw_near_first(&mut tile, bin, &projected, &nearness, &mut keyed, |part| {
+                draw_near_first(&mut tile, bin, projected, nearness, &mut keyed, |part| {
                     masks.get(part as usize)
                 });
                 let (x0, y0, w, h) = tile.rect();
@@ -273,37 +275,44 @@ pub(super) fn views_of(
 }
 
 /// A view's projected quads (ids: their index over all pages, in page
-/// order) and, per [`TILE`]-sized tile, the ones whose box touches it.
+/// order), their [`nearness`] and, per [`TILE`]-sized tile, the ones
+/// whose box touches it. One worker re-bins view after view into the same
+/// one ([`Binned::rebin`]): its memory (lego (128, 17): 24 MB of projected
+/// quads a view) is then fresh pages once per worker, not once per view.
+#[derive(Default)]
 pub(super) struct Binned {
     pub projected: Vec<ScreenQuad>,
+    pub nearness: Vec<u32>,
     pub bins: Vec<Vec<u32>>,
     /// Tiles per row.
     pub tx: u32,
 }
 
-/// Projects `quads` (`quads[i]` on page `i`) into `view` and bins them.
-pub(super) fn bin(quads: &[&[RasterQuad]], view: &nerflex_core::raster::View) -> Binned {
-    let mut id = 0u32;
-    // At its final size from the start: grown by doubling, lego's 24 MB
-    // per view was copied into fresh pages up to four times a pass.
-    let mut projected = Vec::with_capacity(quads.iter().map(|p| p.len()).sum());
-    for (pi, part) in quads.iter().enumerate() {
-        for q in part.iter() {
-            if let Some(sq) = ScreenQuad::project(view, q, pi as u16, id) {
-                projected.push(sq);
+impl Binned {
+    /// Projects `quads` (`quads[i]` on page `i`) into `view` and bins
+    /// them, in place of what was here.
+    pub(super) fn rebin(&mut self, quads: &[&[RasterQuad]], view: &nerflex_core::raster::View) {
+        let mut id = 0u32;
+        self.projected.clear();
+        // At its final size from the start: grown by doubling, lego's 24
+        // MB per view was copied into fresh pages up to four times a pass.
+        self.projected.reserve(quads.iter().map(|p| p.len()).sum());
+        for (pi, part) in quads.iter().enumerate() {
+            for q in part.iter() {
+                if let Some(sq) = ScreenQuad::project(view, q, pi as u16, id) {
+                    self.projected.push(sq);
+                }
+                id += 1;
             }
-            id += 1;
         }
-    }
-    let (bins, tx) = crate::render::tile_bins(&projected, view, TILE as u32);
-    Binned {
-        projected,
-        bins,
-        tx,
+        self.nearness.clear();
+        self.nearness
+            .extend(self.projected.iter().map(|sq| sq.nearest().to_bits()));
+        self.tx = crate::render::tile_bins_into(&self.projected, view, TILE as u32, &mut self.bins);
     }
 }
 
-pub(super) use crate::render::{draw_near_first, near_first, nearness};
+pub(super) use crate::render::{draw_near_first, near_first};
 
 /// The texel (`quad · p² + y · p + x`) tile-local sample `(x, y)` of
 /// `tile` shows, if covered.

@@ -15,7 +15,7 @@ use rayon::prelude::*;
 
 use super::super::{BakeError, BakeView};
 use super::extract::Geometry;
-use super::gbuffer::{alpha_masks, bin, draw_near_first, nearness, pages_of, Binned, TILE};
+use super::gbuffer::{alpha_masks, draw_near_first, pages_of, Binned, TILE};
 use crate::camera::Camera;
 use crate::render::{supersampled_view, view_of};
 use nerflex_core::raster::{Quad as RasterQuad, TileRenderer};
@@ -81,22 +81,25 @@ pub fn shown_from(
     let masks = alpha_masks(&pages)?;
     let nq = geo.quads.len();
     let t = TILE as u32;
-    Ok(cameras
+    let shown = cameras
         .par_iter()
         .fold(
-            || vec![false; nq],
-            |mut on, c| {
+            || (vec![false; nq], Binned::default()),
+            |(mut on, mut binned), c| {
                 let view = match supersample {
                     true => supersampled_view(c),
                     false => view_of(c),
                 };
-                let Ok(view) = view else { return on };
+                let Ok(view) = view else {
+                    return (on, binned);
+                };
+                binned.rebin(&quads, &view);
                 let Binned {
                     projected,
+                    nearness,
                     bins,
                     tx,
-                } = bin(&quads, &view);
-                let nearness = nearness(&projected);
+                } = &binned;
                 let mut keyed = Vec::new();
                 let mut tile = Box::new(TileRenderer::<TILE, TILE>::new());
                 for (b, bin) in bins.iter().enumerate() {
@@ -104,7 +107,7 @@ pub fn shown_from(
                         continue;
                     }
                     tile.begin(&view, (b as u32 % tx) * t, (b as u32 / tx) * t);
-                    draw_near_first(&mut tile, bin, &projected, &nearness, &mut keyed, |part| {
+                    draw_near_first(&mut tile, bin, projected, nearness, &mut keyed, |part| {
                         masks.get(part as usize)
                     });
                     let (_, _, w, h) = tile.rect();
@@ -117,16 +120,18 @@ pub fn shown_from(
                         }
                     }
                 }
-                on
+                (on, binned)
             },
         )
+        .map(|(on, _)| on)
         .reduce(
             || vec![false; nq],
             |mut a, b| {
                 a.iter_mut().zip(b).for_each(|(x, y)| *x |= y);
                 a
             },
-        ))
+        );
+    Ok(shown)
 }
 
 #[cfg(test)]

@@ -268,10 +268,10 @@ pub fn peel(
     let per: Vec<Result<ViewLayers, BakeError>> = views
         .par_iter()
         .enumerate()
-        .map(|(vi, v)| {
+        .map_init(gbuffer::Binned::default, |binned, (vi, v)| {
             let (out_view, view, ss) = gbuffer::views_of(vi, v, supersample)?;
-            let binned = gbuffer::bin(&quads, &view);
-            let nearness = gbuffer::nearness(&binned.projected);
+            binned.rebin(&quads, &view);
+            let binned = &*binned;
             let mut keyed = Vec::new();
             let t = TILE as u32;
             let mut two = Box::new(TwoLayers::<TILE, TILE>::new());
@@ -293,7 +293,7 @@ pub fn peel(
                 // quad behind both layers wherever it could cover is not
                 // drawn.
                 for (i, sq, near) in
-                    gbuffer::near_first(bin, &binned.projected, &nearness, &mut keyed)
+                    gbuffer::near_first(bin, &binned.projected, &binned.nearness, &mut keyed)
                 {
                     if two.hides(sq, near) {
                         continue;
