@@ -1067,7 +1067,7 @@ fn judge_sphere(p: &Proj, table: &SummedArea, centre: Vec3, radius: f32, margin:
 fn sphere_rect(p: &Proj, centre: Vec3, radius: f32) -> Option<(f32, f32, f32, f32)> {
     let c = p.w2c.transform_point3(centre);
     let depth = -c.z;
-    if !(depth - radius > 1e-4) {
+    if depth.is_nan() || depth - radius <= 1e-4 {
         return None;
     }
     let den = (depth - radius) * (depth + radius);
