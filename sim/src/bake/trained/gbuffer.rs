@@ -275,7 +275,8 @@ pub(super) fn views_of(
 }
 
 /// A view's projected quads (ids: their index over all pages, in page
-/// order), their [`nearness`] and, per [`TILE`]-sized tile, the ones
+/// order), their nearness (each one's [`ScreenQuad::nearest`] as bits
+/// that sort like it) and, per [`TILE`]-sized tile, the ones
 /// whose box touches it. One worker re-bins view after view into the same
 /// one ([`Binned::rebin`]): its memory (lego (128, 17): 24 MB of projected
 /// quads a view) is then fresh pages once per worker, not once per view.
