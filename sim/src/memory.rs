@@ -14,7 +14,8 @@
 //! [`HugePageAlloc`] goes further on large blocks: on transparent huge
 //! pages they fault in a 2 MiB page at a time and their random reads miss
 //! the TLB less (lego (128, 17): the whole command 0.76–0.95 of its time
-//! paired, the system time a third lower; docs/baking.md, "Session 52").
+//! paired, the system time a third lower; a short `nerflex train` 0.86–0.90;
+//! docs/baking.md, "Session 52").
 
 use std::alloc::{GlobalAlloc, Layout, System};
 
