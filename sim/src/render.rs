@@ -135,7 +135,15 @@ struct TileOut {
 /// Each quad's [`ScreenQuad::nearest`] `1/w`, as bits that sort like it
 /// (it is never negative): the key [`near_first`] sorts on.
 pub(crate) fn nearness(projected: &[ScreenQuad]) -> Vec<u32> {
-    projected.iter().map(|sq| sq.nearest().to_bits()).collect()
+    let mut out = Vec::new();
+    nearness_into(projected, &mut out);
+    out
+}
+
+/// [`nearness`] into `out` (cleared first), keeping its memory.
+pub(crate) fn nearness_into(projected: &[ScreenQuad], out: &mut Vec<u32>) {
+    out.clear();
+    out.extend(projected.iter().map(|sq| sq.nearest().to_bits()));
 }
 
 /// Quads ahead [`near_first`] asks the cache for.

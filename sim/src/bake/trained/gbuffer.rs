@@ -306,9 +306,7 @@ impl Binned {
                 id += 1;
             }
         }
-        self.nearness.clear();
-        self.nearness
-            .extend(self.projected.iter().map(|sq| sq.nearest().to_bits()));
+        crate::render::nearness_into(&self.projected, &mut self.nearness);
         self.tx = crate::render::tile_bins_into(&self.projected, view, TILE as u32, &mut self.bins);
     }
 }
