@@ -635,8 +635,11 @@ fn renumbered(flags: &[bool], new_index: &[u32], n: usize) -> Vec<bool> {
 /// pixels see their quad from behind. In parallel: on lego at 800 px this
 /// was a serial loop over 17.5 M pixels, most of the 2 s of main-thread
 /// samples a profile put in [`bake`] itself (docs/baking.md, "Session 29").
+/// The G-buffers are consumed: their vectors become the training pixels'
+/// in place (0.5 GB of fresh pages a round on lego (128, 17), and fresh
+/// pages are the dear part of memory on a VM: docs/baking.md, "Session 53").
 fn train_pixels(
-    gb: &gbuffer::GBuffers,
+    mut gb: gbuffer::GBuffers,
     quads: &[super::quads::Quad],
     new_index: &[u32],
     p2: usize,
@@ -664,28 +667,35 @@ fn train_pixels(
             slot_texel.push(t as u32);
         }
     }
-    let slot = |t: u32| slot_of[texel(t)].load(Relaxed);
-    let pixels = finetune::TrainPixels {
-        pixels: gb
-            .pixels
-            .par_iter()
-            .map(|px| finetune::TrainPixel {
-                slot: slot(px.texel),
-                dir: px.dir,
-                target: px.target,
-            })
-            .collect(),
-        subsamples: gb
-            .subsamples
-            .par_iter()
-            .map(|s| s.map(|t| if t == gbuffer::NO_TEXEL { t } else { slot(t) }))
-            .collect(),
-    };
     let backface = gb
         .pixels
         .par_iter()
         .filter(|px| from_behind(&quads[new_index[px.texel as usize / p2] as usize], px.dir))
         .count() as u64;
+    // Texels become slots in place (in parallel); then each `GPixel`
+    // becomes a `TrainPixel` of the same size in the same allocation
+    // (std collects a mapped `vec::IntoIter` in place: a streaming pass).
+    let slot = |t: u32| slot_of[texel(t)].load(Relaxed);
+    gb.pixels
+        .par_iter_mut()
+        .for_each(|px| px.texel = slot(px.texel));
+    gb.subsamples.par_iter_mut().for_each(|s| {
+        for t in s.iter_mut().filter(|t| **t != gbuffer::NO_TEXEL) {
+            *t = slot(*t);
+        }
+    });
+    let pixels = finetune::TrainPixels {
+        pixels: gb
+            .pixels
+            .into_iter()
+            .map(|px| finetune::TrainPixel {
+                slot: px.texel,
+                dir: px.dir,
+                target: px.target,
+            })
+            .collect(),
+        subsamples: gb.subsamples,
+    };
     (pixels, slot_texel, backface)
 }
 
@@ -832,7 +842,7 @@ pub fn bake(
     let nq = geo.quads.len();
     let (mut t2, mut t3) = (t1, t1);
     let mut tune = Duration::ZERO;
-    let mut pixels;
+    let mut train_pixel_count;
     let mut backface_pixels;
     let mut trained_texels;
     let mut round = 0;
@@ -902,8 +912,9 @@ pub fn bake(
 
         // One entry per texel a pixel shows: how it reads the lattice.
         let slot_texel;
-        (pixels, slot_texel, backface_pixels) = train_pixels(&gb, &geo.quads, &new_index, p2);
-        drop(gb);
+        let pixels;
+        (pixels, slot_texel, backface_pixels) = train_pixels(gb, &geo.quads, &new_index, p2);
+        train_pixel_count = pixels.len();
         trained_texels = slot_texel.len() as u64;
         let taps: Vec<featgrid::Taps> = {
             use rayon::prelude::*;
@@ -965,7 +976,8 @@ pub fn bake(
                 ..report
             }
         };
-        drop(taps);
+        // Gone before the next round's peel and G-buffers take their place.
+        drop((taps, pixels));
         if round == rounds {
             break;
         }
@@ -1105,7 +1117,7 @@ pub fn bake(
         lattice_res: grid.res(),
         lattice_vertices: grid.len() as u64,
         reached_vertices: reached as u64,
-        train_pixels: pixels.len() as u64,
+        train_pixels: train_pixel_count as u64,
         voxel_px: voxel_px.unwrap_or(0.0),
         supersampled: supersample,
         backface_pixels,
