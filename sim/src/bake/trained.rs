@@ -53,6 +53,10 @@ use crate::train::field::RadianceField;
 pub use finetune::{FinetuneReport, FinetuneSettings};
 pub use init::FitSettings;
 
+/// Longest run of neighbouring pixels the fine-tune's order keeps
+/// together (`--finetune-run`; a batch is 8192 pixels).
+const MAX_FINETUNE_RUN: u32 = 1024;
+
 /// Most rounds of the depth carve (each is a G-buffer pass and a march
 /// per training pixel; lego was measured with two).
 pub const MAX_DEPTH_CARVE_ROUNDS: u32 = 8;
@@ -446,6 +450,12 @@ impl TrainedParams {
             return Err(BakeError::BadParam(
                 "--visibility-block needs at least one visibility round (--visibility-rounds ≥ 1; the mesh has none by default)".into(),
             ));
+        }
+        let run = self.finetune.run;
+        if !(1..=MAX_FINETUNE_RUN).contains(&run) {
+            return Err(BakeError::BadParam(format!(
+                "--finetune-run {run} must lie in [1, {MAX_FINETUNE_RUN}] (training pixels per run)"
+            )));
         }
         let lr = self.finetune.lr_features;
         if !(lr.is_finite() && lr > 0.0 && lr <= 1.0) {
@@ -1193,7 +1203,7 @@ mod tests {
     #[test]
     fn bad_settings_name_their_flag() {
         assert!(TrainedParams::new(32, 5).validate().is_ok());
-        let bad: [Spoil; 34] = [
+        let bad: [Spoil; 36] = [
             ("--surface-miss", |p| p.surface_miss = 0.5),
             ("--surface-miss", |p| p.surface_miss = -0.01),
             ("--surface-miss", |p| p.surface_miss = f32::NAN),
@@ -1211,6 +1221,8 @@ mod tests {
             ("--depth-carve", |p| p.depth_carve_rounds = 1000),
             ("--depth-carve-margin", |p| p.depth_carve_margin = -1.0),
             ("--depth-carve-margin", |p| p.depth_carve_margin = f32::NAN),
+            ("--finetune-run", |p| p.finetune.run = 0),
+            ("--finetune-run", |p| p.finetune.run = 100_000),
             ("--feature-lr", |p| p.finetune.lr_features = 0.0),
             ("--hull-radius", |p| p.hull_radius = 0.25),
             ("--hull-radius", |p| p.hull_radius = f32::NAN),

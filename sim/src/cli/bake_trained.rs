@@ -52,6 +52,11 @@ pub struct TrainedArgs {
     /// bake's noise: docs/baking.md, "Session 29").
     #[arg(long, default_value_t = 7)]
     pub finetune_seed: u64,
+    /// Runs of this many neighbouring training pixels keep together in the
+    /// fine-tune's shuffled order (fewer cache misses; 1: every pixel on
+    /// its own, the default; docs/baking.md, "Session 53").
+    #[arg(long, default_value_t = 1)]
+    pub finetune_run: u32,
     /// Rounds of the depth carve: texels that training rays reach in
     /// front of the field's median depth (by more than
     /// --depth-carve-margin voxels) are emptied; 0: off.
@@ -278,6 +283,7 @@ impl TrainedArgs {
         p.finetune.lr_features = self.feature_lr;
         p.finetune.lr_mlp = self.mlp_lr;
         p.finetune.seed = self.finetune_seed;
+        p.finetune.run = self.finetune_run;
         p.depth_carve_rounds = self.depth_carve;
         p.depth_carve_margin = self.depth_carve_margin;
         p.surface_alpha = self.surface_alpha;

@@ -140,7 +140,7 @@ impl PixelRef<'_> {
 }
 
 /// Settings of the fine-tune.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Clone, Copy, PartialEq)]
 pub struct FinetuneSettings {
     /// Passes over the training pixels (fractions allowed).
     pub epochs: f32,
@@ -152,6 +152,11 @@ pub struct FinetuneSettings {
     pub lr_mlp: f32,
     /// Seed of the pixel order.
     pub seed: u64,
+    /// Pixels per run of the order: the shuffle permutes runs of this many
+    /// consecutive training pixels (neighbours in one view's tile, which
+    /// share lattice vertices and lie side by side in memory) instead of
+    /// single pixels; 1: every pixel on its own (the default).
+    pub run: u32,
 }
 
 impl Default for FinetuneSettings {
@@ -164,7 +169,26 @@ impl Default for FinetuneSettings {
             lr_features: 0.015,
             lr_mlp: 3e-3,
             seed: 7,
+            run: 1,
         }
+    }
+}
+
+/// Debug as derived, `run` left out at its default 1: the bake store keys
+/// trained bakes by their settings' Debug text, and those made before
+/// `run` existed keep their keys.
+impl std::fmt::Debug for FinetuneSettings {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut d = f.debug_struct("FinetuneSettings");
+        d.field("epochs", &self.epochs)
+            .field("batch", &self.batch)
+            .field("lr_features", &self.lr_features)
+            .field("lr_mlp", &self.lr_mlp)
+            .field("seed", &self.seed);
+        if self.run != 1 {
+            d.field("run", &self.run);
+        }
+        d.finish()
     }
 }
 
@@ -662,6 +686,20 @@ fn shuffle(order: &mut Vec<u32>, scratch: &mut Vec<u32>, rng: &mut ChaCha8Rng) {
     std::mem::swap(order, scratch);
 }
 
+/// `order` ← the pixels of runs `runs` (run `r`: pixels `r·run ..
+/// (r+1)·run`, the last one cut at `order.len()`), run after run.
+fn expand_runs(runs: &[u32], run: usize, order: &mut [u32]) {
+    let n = order.len();
+    let mut at = 0;
+    for &r in runs {
+        let start = r as usize * run;
+        for (o, i) in order[at..].iter_mut().zip(start..(start + run).min(n)) {
+            *o = i as u32;
+            at += 1;
+        }
+    }
+}
+
 /// Which training PSNRs [`finetune`] measures (each reads a million
 /// pixels): the visibility rounds' fine-tunes report only the first one's
 /// before and the last one's after.
@@ -699,8 +737,15 @@ pub fn finetune(
     let total = (s.epochs.max(0.0) as f64 * n as f64).round() as u64;
     let steps = total.div_ceil(batch as u64) as usize;
     let mut rng = ChaCha8Rng::seed_from_u64(s.seed);
+    let run = s.run.max(1) as usize;
     let mut order: Vec<u32> = (0..n as u32).collect();
     let mut order_scratch = Vec::new();
+    // With runs: the shuffled run numbers, expanded into `order` per epoch.
+    let mut runs: Vec<u32> = if run > 1 {
+        (0..n.div_ceil(run) as u32).collect()
+    } else {
+        Vec::new()
+    };
     let mut pos = n;
     let mut params = net::flatten(mlp);
     let mut flat_grad = Vec::with_capacity(params.len());
@@ -733,7 +778,12 @@ pub fn finetune(
         idx.clear();
         while idx.len() < batch && n > 0 {
             if pos == n {
-                shuffle(&mut order, &mut order_scratch, &mut rng);
+                if run > 1 {
+                    shuffle(&mut runs, &mut order_scratch, &mut rng);
+                    expand_runs(&runs, run, &mut order);
+                } else {
+                    shuffle(&mut order, &mut order_scratch, &mut rng);
+                }
                 pos = 0;
             }
             let take = (batch - idx.len()).min(n - pos);
@@ -790,6 +840,46 @@ pub fn finetune(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The default settings print as they did before `run` (store keys).
+    #[test]
+    fn debug_leaves_out_the_default_run() {
+        let s = FinetuneSettings::default();
+        assert_eq!(
+            format!("{s:?}"),
+            "FinetuneSettings { epochs: 2.5, batch: 8192, lr_features: 0.015, lr_mlp: 0.003, seed: 7 }"
+        );
+        let r = FinetuneSettings { run: 8, ..s };
+        assert!(format!("{r:?}").ends_with("seed: 7, run: 8 }"));
+    }
+
+    /// Runs expand into every pixel once, each run's pixels consecutive.
+    #[test]
+    fn runs_expand_into_a_permutation_of_consecutive_pixels() {
+        for (n, run) in [
+            (0usize, 4usize),
+            (1, 4),
+            (10, 4),
+            (12, 4),
+            (13, 1),
+            (1000, 7),
+        ] {
+            let mut runs: Vec<u32> = (0..n.div_ceil(run) as u32).collect();
+            let mut scratch = Vec::new();
+            shuffle(&mut runs, &mut scratch, &mut ChaCha8Rng::seed_from_u64(3));
+            let mut order = vec![u32::MAX; n];
+            expand_runs(&runs, run, &mut order);
+            let mut sorted = order.clone();
+            sorted.sort_unstable();
+            assert_eq!(sorted, (0..n as u32).collect::<Vec<_>>(), "n {n} run {run}");
+            // Where a run starts, its pixels follow it in order.
+            for w in order.windows(2) {
+                if w[1] as usize % run != 0 {
+                    assert_eq!(w[1], w[0] + 1, "n {n} run {run}: {order:?}");
+                }
+            }
+        }
+    }
 
     /// The parallel shuffle is a permutation, the same for the same seed,
     /// and puts each item in each place about equally often.

@@ -34,6 +34,9 @@ pub fn features_of(c: Vec3) -> [f32; FEATURES] {
     f
 }
 
+/// Partial sums of [`splat`] (in parallel, then added in order).
+const SPLAT_PARTS: usize = 2;
+
 /// Initial lattice values (see the module's notes); returns them and how
 /// many vertices the pixels reached.
 pub fn splat(
@@ -43,8 +46,12 @@ pub fn splat(
     field: &dyn RadianceField,
 ) -> (Vec<[f32; FEATURES]>, usize) {
     let n = grid.len();
-    let threads = rayon::current_num_threads().max(1);
-    let chunk = pixels.len().div_ceil(threads).max(1);
+    // A fixed number of partial sums, whatever the cores: the f32 sums
+    // then add in the same order everywhere (one per core made a bake on
+    // one core differ from the same bake on two: lego (128, 17) 30.21 dB
+    // against 30.15; docs/baking.md, "Session 53"). Two is what two
+    // cores did, so their bakes keep their bits.
+    let chunk = pixels.len().div_ceil(SPLAT_PARTS).max(1);
     let acc = (0..pixels.len().div_ceil(chunk))
         .into_par_iter()
         .map(|c| {
@@ -174,4 +181,62 @@ pub fn fit_mlp(samples: &[FitSample], s: &FitSettings) -> (MlpWeights, f32) {
         w = net::unflatten(&params);
     }
     (w, mse)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bake::trained::analytic::Sphere;
+    use crate::bake::trained::finetune::TrainPixel;
+    use crate::bake::Aabb;
+
+    /// The splat is the same bits on one core and on three: a bake must
+    /// not depend on the machine's core count.
+    #[test]
+    fn the_splat_does_not_depend_on_the_cores() {
+        let cube = Aabb {
+            min: Vec3::splat(-1.0),
+            max: Vec3::splat(1.0),
+        };
+        let pts: Vec<Vec3> = (0..300)
+            .map(|i| {
+                let t = i as f32 * 0.618;
+                0.6 * Vec3::new(t.sin(), (1.7 * t).cos(), (2.3 * t).sin())
+            })
+            .collect();
+        let grid = FeatureGrid::new(&cube, 8, &pts);
+        let taps: Vec<Taps> = pts.iter().map(|&p| grid.taps(p).unwrap()).collect();
+        let pixels = TrainPixels {
+            pixels: (0..20_000u32)
+                .map(|i| TrainPixel {
+                    slot: (i * 7919) % taps.len() as u32,
+                    dir: [0.0, 0.0, 1.0],
+                    target: [
+                        (i as f32 * 0.013).sin().abs(),
+                        (i as f32 * 0.029).cos().abs(),
+                        0.3 + 0.1 * (i % 5) as f32,
+                    ],
+                })
+                .collect(),
+            subsamples: Vec::new(),
+        };
+        let field = Sphere::new(Vec3::ZERO, 0.6);
+        let on = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| splat(&grid, &pixels, &taps, &field))
+        };
+        let (one, reached) = on(1);
+        assert!(reached > 0);
+        let bits = |v: &[[f32; FEATURES]]| -> Vec<u32> {
+            v.iter().flatten().map(|x| x.to_bits()).collect()
+        };
+        for threads in [2, 3] {
+            let (many, r) = on(threads);
+            assert_eq!(r, reached);
+            assert_eq!(bits(&many), bits(&one), "{threads} threads");
+        }
+    }
 }
